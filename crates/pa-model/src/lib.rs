@@ -1,0 +1,361 @@
+//! glTF 2.0 prop models for Props Alive: hardened loading, animation sampling, CPU skinning
+//! and export of posed meshes.
+//!
+//! The stage this crate serves is **animate** (frame -> track -> place -> *animate* -> texture
+//! -> diminish -> composite -> output). It is pure CPU code with no renderer dependency:
+//!
+//! - [`Model::load`] reads `.glb` / `.gltf` (external `.bin` and images, data URIs) into our own
+//!   plain types, checking every byte range, index and count on the way (hostile files give a
+//!   [`ModelError`] naming the file and the problem, never a panic or an unbounded allocation).
+//! - [`anim`] samples an animation at any time into a [`anim::Pose`] (LINEAR, STEP,
+//!   CUBICSPLINE; translation, rotation, scale, morph weights).
+//! - [`skin`] is the CPU reference of linear blend skinning `v' = sum_i w_i M_i v` plus morph
+//!   targets, in glTF world space (right-handed, +Y up, metres).
+//! - [`export`] writes a posed mesh as OBJ, STL or GLB.
+
+pub mod accessor;
+pub mod anim;
+pub mod export;
+mod load;
+pub mod skin;
+
+use std::path::PathBuf;
+
+use glam::{Mat4, Quat, Vec3};
+
+pub use load::{Limits, LoadOptions};
+
+/// An error while loading or using a model. Its message names the file and the problem.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {kind}", path.display())]
+pub struct ModelError {
+    /// The model file (or output file, for export errors).
+    pub path: PathBuf,
+    /// What went wrong.
+    pub kind: ErrorKind,
+}
+
+/// What went wrong with a model.
+#[derive(Debug, thiserror::Error)]
+pub enum ErrorKind {
+    #[error("cannot read file: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("not a valid glTF 2.0 file: {0}")]
+    Parse(String),
+    #[error("{what} is {size} bytes, over the limit of {limit} bytes")]
+    TooLarge { what: String, size: u64, limit: u64 },
+    #[error("URI {uri:?} escapes the model's folder (absolute paths and '..' are refused)")]
+    UriEscapes { uri: String },
+    #[error("URI {uri:?} is not supported: {reason}")]
+    UnsupportedUri { uri: String, reason: String },
+    #[error("buffer {index}: {message}")]
+    Buffer { index: usize, message: String },
+    #[error("accessor {index}: {message}")]
+    Accessor { index: usize, message: String },
+    #[error(
+        "mesh {mesh} primitive {primitive}: joint index {joint} at vertex {vertex} is past the \
+         skin's {joint_count} joints (node {node})"
+    )]
+    JointOutOfRange {
+        node: usize,
+        mesh: usize,
+        primitive: usize,
+        vertex: usize,
+        joint: u32,
+        joint_count: usize,
+    },
+    #[error(
+        "mesh {mesh} primitive {primitive}: invalid skin weights at vertex {vertex}: {message}"
+    )]
+    InvalidWeights {
+        mesh: usize,
+        primitive: usize,
+        vertex: usize,
+        message: String,
+    },
+    #[error("mesh {mesh} primitive {primitive}: {message}")]
+    Primitive {
+        mesh: usize,
+        primitive: usize,
+        message: String,
+    },
+    #[error("image {index}: {message}")]
+    Image { index: usize, message: String },
+    #[error("skin {index}: {message}")]
+    Skin { index: usize, message: String },
+    #[error("animation {index}: {message}")]
+    Animation { index: usize, message: String },
+    #[error("node hierarchy: {0}")]
+    Hierarchy(String),
+    #[error("no animation named {0:?} (see `propsalive inspect`)")]
+    NoSuchAnimation(String),
+    #[error("cannot export: {0}")]
+    Export(String),
+}
+
+impl ModelError {
+    pub(crate) fn new(path: impl Into<PathBuf>, kind: ErrorKind) -> Self {
+        Self {
+            path: path.into(),
+            kind,
+        }
+    }
+}
+
+/// A node's local transform.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LocalTransform {
+    /// A matrix (cannot be animated, per the spec).
+    Matrix(Mat4),
+    /// Translation, rotation (unit quaternion), scale.
+    Trs(Trs),
+}
+
+/// Translation, rotation, scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trs {
+    pub translation: Vec3,
+    pub rotation: Quat,
+    pub scale: Vec3,
+}
+
+impl Default for Trs {
+    fn default() -> Self {
+        Self {
+            translation: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            scale: Vec3::ONE,
+        }
+    }
+}
+
+impl Trs {
+    /// `parent_from_node` as a matrix.
+    pub fn matrix(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
+    }
+}
+
+impl LocalTransform {
+    /// `parent_from_node` as a matrix.
+    pub fn matrix(&self) -> Mat4 {
+        match self {
+            Self::Matrix(m) => *m,
+            Self::Trs(t) => t.matrix(),
+        }
+    }
+}
+
+/// A node of the scene graph.
+#[derive(Debug, Clone)]
+pub struct Node {
+    pub name: Option<String>,
+    pub parent: Option<usize>,
+    pub children: Vec<usize>,
+    /// Rest (non-animated) local transform.
+    pub local: LocalTransform,
+    pub mesh: Option<usize>,
+    pub skin: Option<usize>,
+    /// Morph weights of this node's mesh (node weights, else the mesh's, else zeros).
+    pub morph_weights: Vec<f32>,
+}
+
+/// A morph target: per-vertex deltas.
+#[derive(Debug, Clone, Default)]
+pub struct MorphTarget {
+    pub position_deltas: Vec<Vec3>,
+    /// Empty when the target has no normal deltas.
+    pub normal_deltas: Vec<Vec3>,
+}
+
+/// One drawable primitive of a mesh (always a triangle list after loading).
+#[derive(Debug, Clone, Default)]
+pub struct Primitive {
+    pub positions: Vec<Vec3>,
+    /// Empty when the file has none (flat normals are then computed where needed).
+    pub normals: Vec<Vec3>,
+    /// TEXCOORD_0; empty when absent.
+    pub uvs: Vec<[f32; 2]>,
+    /// Up to 8 joint influences (JOINTS_0, JOINTS_1); empty for rigid primitives.
+    pub joints: Vec<[u16; 8]>,
+    /// Weights matching `joints`, normalised to sum to 1.
+    pub weights: Vec<[f32; 8]>,
+    /// Triangle list indices (every primitive mode is converted to a triangle list; points and
+    /// lines produce none).
+    pub indices: Vec<u32>,
+    pub material: Option<usize>,
+    pub morph_targets: Vec<MorphTarget>,
+}
+
+impl Primitive {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+}
+
+/// A mesh: a list of primitives.
+#[derive(Debug, Clone, Default)]
+pub struct Mesh {
+    pub name: Option<String>,
+    pub primitives: Vec<Primitive>,
+}
+
+/// A skin: joints and their inverse bind matrices.
+#[derive(Debug, Clone)]
+pub struct Skin {
+    pub name: Option<String>,
+    /// Node indices of the joints.
+    pub joints: Vec<usize>,
+    /// `joint_from_bind` per joint (identity when the file has none).
+    pub inverse_bind_matrices: Vec<Mat4>,
+}
+
+/// A decoded RGBA8 image (sRGB encoded, as in the file).
+#[derive(Debug, Clone)]
+pub struct Image {
+    pub name: Option<String>,
+    pub width: u32,
+    pub height: u32,
+    pub rgba8: Vec<u8>,
+}
+
+/// The parts of a glTF material Props Alive uses.
+#[derive(Debug, Clone)]
+pub struct Material {
+    pub name: Option<String>,
+    pub base_color_factor: [f32; 4],
+    /// Index into [`Model::images`].
+    pub base_color_image: Option<usize>,
+    pub double_sided: bool,
+}
+
+/// The animated property of a channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Property {
+    Translation,
+    Rotation,
+    Scale,
+    MorphWeights,
+}
+
+/// Keyframe interpolation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Interpolation {
+    Linear,
+    Step,
+    CubicSpline,
+}
+
+/// A sampler with its keyframes, validated at load time.
+#[derive(Debug, Clone)]
+pub struct Sampler {
+    pub interpolation: Interpolation,
+    /// Strictly increasing key times in seconds.
+    pub times_s: Vec<f32>,
+    /// Flat output values: per key, `components` values (three groups for CUBICSPLINE:
+    /// in-tangent, value, out-tangent). Rotation keys are normalised.
+    pub values: Vec<f32>,
+    /// Values per element (3, 4, or the number of morph targets).
+    pub components: usize,
+}
+
+/// One animated property of one node.
+#[derive(Debug, Clone)]
+pub struct Channel {
+    pub node: usize,
+    pub property: Property,
+    pub sampler: Sampler,
+}
+
+/// An animation clip.
+#[derive(Debug, Clone)]
+pub struct Animation {
+    pub name: Option<String>,
+    pub channels: Vec<Channel>,
+    /// The last key time of any channel.
+    pub duration_s: f32,
+}
+
+/// A loaded glTF model.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Where it was loaded from (used in error messages).
+    pub path: PathBuf,
+    pub nodes: Vec<Node>,
+    /// Root nodes of the default scene (or of every root when the file names no scene).
+    pub roots: Vec<usize>,
+    pub meshes: Vec<Mesh>,
+    pub skins: Vec<Skin>,
+    pub materials: Vec<Material>,
+    pub images: Vec<Image>,
+    pub animations: Vec<Animation>,
+    /// Warnings raised while loading (for example weights that were renormalised).
+    pub warnings: Vec<String>,
+}
+
+impl Model {
+    /// Loads a `.glb` or `.gltf` file with the default limits.
+    pub fn load(path: impl Into<PathBuf>) -> Result<Self, ModelError> {
+        load::load(path.into(), &LoadOptions::default())
+    }
+
+    /// Loads a `.glb` or `.gltf` file with explicit limits.
+    pub fn load_with(path: impl Into<PathBuf>, options: &LoadOptions) -> Result<Self, ModelError> {
+        load::load(path.into(), options)
+    }
+
+    /// Parses a glTF from memory. `base_dir` resolves relative URIs (none when `None`).
+    pub fn from_slice(
+        bytes: &[u8],
+        name: impl Into<PathBuf>,
+        base_dir: Option<&std::path::Path>,
+        options: &LoadOptions,
+    ) -> Result<Self, ModelError> {
+        load::from_slice(bytes, name.into(), base_dir, options)
+    }
+
+    /// Finds an animation by name, or by index when `name_or_index` is a number.
+    pub fn find_animation(&self, name_or_index: &str) -> Result<usize, ModelError> {
+        if let Some(i) = self
+            .animations
+            .iter()
+            .position(|a| a.name.as_deref() == Some(name_or_index))
+        {
+            return Ok(i);
+        }
+        match name_or_index.parse::<usize>() {
+            Ok(i) if i < self.animations.len() => Ok(i),
+            _ => Err(ModelError::new(
+                &self.path,
+                ErrorKind::NoSuchAnimation(name_or_index.to_string()),
+            )),
+        }
+    }
+
+    /// Total vertex count over all meshes (each mesh counted once).
+    pub fn vertex_count(&self) -> usize {
+        self.meshes
+            .iter()
+            .flat_map(|m| &m.primitives)
+            .map(|p| p.positions.len())
+            .sum()
+    }
+
+    /// Total triangle count over all meshes (each mesh counted once).
+    pub fn triangle_count(&self) -> usize {
+        self.meshes
+            .iter()
+            .flat_map(|m| &m.primitives)
+            .map(|p| p.triangle_count())
+            .sum()
+    }
+
+    /// Nodes that carry a mesh, in index order.
+    pub fn mesh_nodes(&self) -> impl Iterator<Item = (usize, &Node)> {
+        self.nodes
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| n.mesh.is_some())
+    }
+}

@@ -1,0 +1,10 @@
+//! The wiring between the stages' pure math and the renderer.
+//!
+//! [`twin`] uploads a [`pa_model::Model`] to a [`pa_render::Renderer`] once and turns each
+//! frame's animation pose into draw data (joint matrices, morph weights), so that skinning runs
+//! in the renderer's vertex stage.
+
+pub mod framing;
+pub mod twin;
+
+pub use twin::{GpuTwin, TwinFrame};

@@ -1,0 +1,230 @@
+//! Bind group layouts, shader modules and pipelines.
+//!
+//! Groups (shared by the render and the compute pipeline, so that `skinning.wgsl` is one
+//! source for both):
+//!
+//! | group | binding | content                                   | used by            |
+//! |-------|---------|-------------------------------------------|--------------------|
+//! | 0     | 0       | mesh vertices (storage, `GpuVertex`)      | vertex, compute    |
+//! | 0     | 1       | morph deltas (storage)                    | vertex, compute    |
+//! | 1     | 0       | `DrawUniforms` (uniform)                  | all                |
+//! | 1     | 1       | joint matrices (storage)                  | vertex, compute    |
+//! | 1     | 2       | morph weights (storage)                   | vertex, compute    |
+//! | 2     | 0, 1    | base colour texture + sampler             | fragment           |
+//! | 2     | 0       | skinned output (storage, read-write)      | compute            |
+
+use bytemuck::{Pod, Zeroable};
+
+/// Colour target format (sRGB encoding on store).
+pub(crate) const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Camera-space z target format: the f32 bits as u32 (R32Float is not renderable on GLES).
+pub(crate) const CAMERA_Z_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+/// Depth-test buffer format.
+pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Workgroup size of `cs_skin`.
+pub(crate) const SKIN_WORKGROUP_SIZE: u32 = 64;
+
+const SKINNING_WGSL: &str = include_str!("shaders/skinning.wgsl");
+const RENDER_WGSL: &str = include_str!("shaders/render.wgsl");
+const SKIN_COMPUTE_WGSL: &str = include_str!("shaders/skin_compute.wgsl");
+
+/// Per-draw uniforms (`DrawUniforms` in `skinning.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub(crate) struct DrawUniforms {
+    pub clip_from_world: [[f32; 4]; 4],
+    pub camera_from_world: [[f32; 4]; 4],
+    pub world_from_mesh: [[f32; 4]; 4],
+    pub base_color_factor: [f32; 4],
+    pub toward_light_world: [f32; 4],
+    pub light_rgb: [f32; 4],
+    pub ambient_rgb: [f32; 4],
+    pub counts: [u32; 4],
+    pub flags: [u32; 4],
+}
+
+/// Everything created once per renderer.
+pub(crate) struct Pipelines {
+    pub mesh_layout: wgpu::BindGroupLayout,
+    pub draw_layout: wgpu::BindGroupLayout,
+    pub texture_layout: wgpu::BindGroupLayout,
+    pub skin_output_layout: wgpu::BindGroupLayout,
+    pub render: wgpu::RenderPipeline,
+    pub skin: wgpu::ComputePipeline,
+    pub sampler: wgpu::Sampler,
+}
+
+fn storage_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    read_only: bool,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Pipelines {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let vc = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE;
+        let mesh_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pa-render mesh layout"),
+            entries: &[storage_entry(0, vc, true), storage_entry(1, vc, true)],
+        });
+        let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pa-render draw layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: vc | wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<DrawUniforms>() as u64,
+                        ),
+                    },
+                    count: None,
+                },
+                storage_entry(1, vc, true),
+                storage_entry(2, vc, true),
+            ],
+        });
+        let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pa-render texture layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let skin_output_layout =
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("pa-render skin output layout"),
+                entries: &[storage_entry(0, wgpu::ShaderStages::COMPUTE, false)],
+            });
+
+        let render_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("pa-render render.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(format!("{SKINNING_WGSL}\n{RENDER_WGSL}").into()),
+        });
+        let skin_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("pa-render skin_compute.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(
+                format!("{SKINNING_WGSL}\n{SKIN_COMPUTE_WGSL}").into(),
+            ),
+        });
+
+        let render_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pa-render render pipeline layout"),
+            bind_group_layouts: &[
+                Some(&mesh_layout),
+                Some(&draw_layout),
+                Some(&texture_layout),
+            ],
+            immediate_size: 0,
+        });
+        let render = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("pa-render render pipeline"),
+            layout: Some(&render_layout),
+            vertex: wgpu::VertexState {
+                module: &render_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &render_module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[
+                    Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(wgpu::ColorTargetState {
+                        format: CAMERA_Z_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                ],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let skin_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pa-render skin pipeline layout"),
+            bind_group_layouts: &[
+                Some(&mesh_layout),
+                Some(&draw_layout),
+                Some(&skin_output_layout),
+            ],
+            immediate_size: 0,
+        });
+        let skin = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("pa-render skin pipeline"),
+            layout: Some(&skin_layout),
+            module: &skin_module,
+            entry_point: Some("cs_skin"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("pa-render base colour sampler"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            address_mode_w: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
+
+        Self {
+            mesh_layout,
+            draw_layout,
+            texture_layout,
+            skin_output_layout,
+            render,
+            skin,
+            sampler,
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! Offscreen targets and GPU -> CPU readback (wgpu's 256-byte row alignment handled here).
+
+use crate::error::RenderError;
+use crate::pipeline::{CAMERA_Z_FORMAT, COLOR_FORMAT, DEPTH_FORMAT};
+
+/// Bytes per row of a `width`-texel row of 4-byte texels, padded to
+/// `COPY_BYTES_PER_ROW_ALIGNMENT`.
+pub(crate) fn padded_bytes_per_row(width: u32) -> u32 {
+    let unpadded = width * 4;
+    let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    unpadded.div_ceil(align) * align
+}
+
+/// Removes row padding: `padded` holds `height` rows of `padded_row` bytes, of which the first
+/// `row` bytes are kept.
+pub(crate) fn unpad_rows(padded: &[u8], row: usize, padded_row: usize, height: usize) -> Vec<u8> {
+    let mut out = Vec::with_capacity(row * height);
+    for chunk in padded.chunks(padded_row).take(height) {
+        out.extend_from_slice(&chunk[..row.min(chunk.len())]);
+    }
+    out
+}
+
+/// Colour, camera-z and depth targets plus their readback buffers, for one size. Kept by the
+/// renderer and reused while the size does not change.
+pub(crate) struct Targets {
+    pub width: u32,
+    pub height: u32,
+    pub color: wgpu::Texture,
+    pub color_view: wgpu::TextureView,
+    pub camera_z: wgpu::Texture,
+    pub camera_z_view: wgpu::TextureView,
+    pub depth_view: wgpu::TextureView,
+    pub color_readback: wgpu::Buffer,
+    pub camera_z_readback: wgpu::Buffer,
+}
+
+impl Targets {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let make = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let target_usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let color = make("pa-render colour target", COLOR_FORMAT, target_usage);
+        let camera_z = make("pa-render camera-z target", CAMERA_Z_FORMAT, target_usage);
+        let depth = make(
+            "pa-render depth buffer",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let buffer_size = u64::from(padded_bytes_per_row(width)) * u64::from(height);
+        let readback = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: buffer_size,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            width,
+            height,
+            color_view: color.create_view(&Default::default()),
+            camera_z_view: camera_z.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+            color,
+            camera_z,
+            color_readback: readback("pa-render colour readback"),
+            camera_z_readback: readback("pa-render camera-z readback"),
+        }
+    }
+
+    /// Records the copies of both colour targets into their readback buffers.
+    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder) {
+        let size = wgpu::Extent3d {
+            width: self.width,
+            height: self.height,
+            depth_or_array_layers: 1,
+        };
+        for (texture, buffer) in [
+            (&self.color, &self.color_readback),
+            (&self.camera_z, &self.camera_z_readback),
+        ] {
+            encoder.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_bytes_per_row(self.width)),
+                        rows_per_image: Some(self.height),
+                    },
+                },
+                size,
+            );
+        }
+    }
+}
+
+/// Maps the given buffers for reading (after the copies were submitted), waits, and returns
+/// their contents.
+pub(crate) fn read_buffers(
+    device: &wgpu::Device,
+    buffers: &[&wgpu::Buffer],
+) -> Result<Vec<Vec<u8>>, RenderError> {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    for (i, buffer) in buffers.iter().enumerate() {
+        let sender = sender.clone();
+        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver outlives the poll below; a send error cannot happen then.
+            let _ = sender.send((i, result));
+        });
+    }
+    drop(sender);
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    for _ in buffers {
+        let (i, result) = receiver
+            .recv()
+            .map_err(|_| RenderError::Readback("map callback was not called".to_owned()))?;
+        result.map_err(|e| RenderError::Readback(format!("buffer {i}: {e}")))?;
+    }
+    let mut out = Vec::with_capacity(buffers.len());
+    for buffer in buffers {
+        let data = {
+            let view = buffer
+                .get_mapped_range(..)
+                .map_err(|e| RenderError::Readback(e.to_string()))?;
+            view.to_vec()
+        };
+        buffer.unmap();
+        out.push(data);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_padding() {
+        assert_eq!(padded_bytes_per_row(64), 256);
+        assert_eq!(padded_bytes_per_row(65), 512);
+        assert_eq!(padded_bytes_per_row(1), 256);
+        let padded: Vec<u8> = (0..2 * 256).map(|i| (i % 256) as u8).collect();
+        let rows = unpad_rows(&padded, 4, 256, 2);
+        assert_eq!(rows, vec![0, 1, 2, 3, 0, 1, 2, 3]);
+    }
+}

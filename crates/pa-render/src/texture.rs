@@ -1,0 +1,211 @@
+//! CPU textures (sRGB RGBA8) and their upload with a CPU-built mip chain.
+
+use crate::error::RenderError;
+
+/// An sRGB-encoded RGBA8 image, row-major from the top-left, no row padding (alpha is linear,
+/// straight). Sampled as sRGB with linear (trilinear) filtering and repeat wrapping.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct CpuTexture {
+    pub width: u32,
+    pub height: u32,
+    pub rgba8: Vec<u8>,
+}
+
+/// A texture uploaded by [`crate::Renderer::upload_texture`]. Cheap to clone.
+#[derive(Debug, Clone)]
+pub struct GpuTexture {
+    pub(crate) renderer_id: u64,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    /// Group 2 of the render pipeline: texture view and sampler.
+    pub(crate) bind_group: wgpu::BindGroup,
+}
+
+impl GpuTexture {
+    /// Size of mip level 0.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+}
+
+impl CpuTexture {
+    /// A single-colour texture.
+    pub fn solid(width: u32, height: u32, rgba8: [u8; 4]) -> Self {
+        Self {
+            width,
+            height,
+            rgba8: rgba8.repeat(width as usize * height as usize),
+        }
+    }
+
+    /// Checks size and data length against a maximum side length.
+    pub fn validate(&self, max_side: u32) -> Result<(), RenderError> {
+        if self.width == 0 || self.height == 0 || self.width > max_side || self.height > max_side {
+            return Err(RenderError::InvalidTextureSize {
+                width: self.width,
+                height: self.height,
+                max: max_side,
+            });
+        }
+        let expected = self.width as usize * self.height as usize * 4;
+        if self.rgba8.len() != expected {
+            return Err(RenderError::TextureDataLength {
+                width: self.width,
+                height: self.height,
+                expected,
+                actual: self.rgba8.len(),
+            });
+        }
+        Ok(())
+    }
+}
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(l: f32) -> u8 {
+    let l = l.clamp(0.0, 1.0);
+    let c = if l <= 0.003_130_8 {
+        l * 12.92
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (c * 255.0 + 0.5) as u8
+}
+
+/// The next mip level (2x2 box filter in linear light; odd sides clamp the last row/column).
+fn downsample(width: u32, height: u32, rgba8: &[u8], lut: &[f32; 256]) -> (u32, u32, Vec<u8>) {
+    let (w2, h2) = ((width / 2).max(1), (height / 2).max(1));
+    let mut out = Vec::with_capacity(w2 as usize * h2 as usize * 4);
+    let texel = |x: u32, y: u32, c: usize| -> u8 {
+        let i = (y.min(height - 1) as usize * width as usize + x.min(width - 1) as usize) * 4 + c;
+        rgba8.get(i).copied().unwrap_or(0)
+    };
+    for y in 0..h2 {
+        for x in 0..w2 {
+            for c in 0..4 {
+                let s = [
+                    texel(2 * x, 2 * y, c),
+                    texel(2 * x + 1, 2 * y, c),
+                    texel(2 * x, 2 * y + 1, c),
+                    texel(2 * x + 1, 2 * y + 1, c),
+                ];
+                if c == 3 {
+                    let sum: u32 = s.iter().map(|&v| v as u32).sum();
+                    out.push(((sum + 2) / 4) as u8);
+                } else {
+                    let sum: f32 = s.iter().map(|&v| lut[v as usize]).sum();
+                    out.push(linear_to_srgb(sum * 0.25));
+                }
+            }
+        }
+    }
+    (w2, h2, out)
+}
+
+pub(crate) fn upload(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    max_side: u32,
+    layout: &wgpu::BindGroupLayout,
+    sampler: &wgpu::Sampler,
+    renderer_id: u64,
+    texture: &CpuTexture,
+) -> Result<GpuTexture, RenderError> {
+    texture.validate(max_side)?;
+    let mip_level_count = 32 - texture.width.max(texture.height).leading_zeros();
+    let gpu = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("pa-render base colour texture"),
+        size: wgpu::Extent3d {
+            width: texture.width,
+            height: texture.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
+    let (mut w, mut h) = (texture.width, texture.height);
+    let mut level_data = std::borrow::Cow::Borrowed(texture.rgba8.as_slice());
+    for level in 0..mip_level_count {
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &gpu,
+                mip_level: level,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            &level_data,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * w),
+                rows_per_image: Some(h),
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        if level + 1 < mip_level_count {
+            let (w2, h2, data) = downsample(w, h, &level_data, &lut);
+            (w, h) = (w2, h2);
+            level_data = std::borrow::Cow::Owned(data);
+        }
+    }
+    let view = gpu.create_view(&wgpu::TextureViewDescriptor::default());
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("pa-render texture bind group"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::Sampler(sampler),
+            },
+        ],
+    });
+    Ok(GpuTexture {
+        renderer_id,
+        width: texture.width,
+        height: texture.height,
+        bind_group,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trip() {
+        for v in 0..=255u8 {
+            assert_eq!(linear_to_srgb(srgb_to_linear(v)), v);
+        }
+    }
+
+    #[test]
+    fn downsample_is_linear_light_average() {
+        let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
+        // Black and white average to linear 0.5, i.e. sRGB 188.
+        let data = [
+            0, 0, 0, 255, 255, 255, 255, 255, 0, 0, 0, 255, 255, 255, 255, 255,
+        ];
+        let (w, h, out) = downsample(2, 2, &data, &lut);
+        assert_eq!((w, h), (1, 1));
+        assert_eq!(out, vec![188, 188, 188, 255]);
+    }
+}

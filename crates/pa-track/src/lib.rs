@@ -1,0 +1,69 @@
+//! Marker tracking and camera pose for Props Alive.
+//!
+//! Pipeline per frame: [`Detector::detect`] finds AprilTags (tag36h11 by default) and
+//! returns corners in the project's convention; [`estimate_tag_pose`] / [`Board::estimate_pose`]
+//! solve the camera pose `camera_from_marker` (IPPE, both planar solutions, refined by
+//! Levenberg-Marquardt on the reprojection error through the full [`pa_camera::CameraModel`]);
+//! [`Tracker`] runs the state machine (Searching -> Detected -> Tracked -> Lost) with
+//! hysteresis, One Euro filtering and region-of-interest search.
+//!
+//! # Conventions
+//!
+//! - Pixels: OpenCV, pixel centres at integer coordinates. The AprilTag library's +0.5 px
+//!   offset is removed once, in [`detect`](crate::detect).
+//! - Corner order: OpenCV/ArUco: `[top-left, top-right, bottom-right, bottom-left]` of the
+//!   tag as printed (outer corners of the black border).
+//! - Marker frame (as in `pa-camera`'s conventions table): right-handed, origin at the tag
+//!   centre, **+X right, +Y down the printed page, +Z into the table**, metres. So the corners
+//!   of a tag of side `s` are TL `(-s/2, -s/2, 0)`, TR `(s/2, -s/2, 0)`,
+//!   BR `(s/2, s/2, 0)`, BL `(-s/2, s/2, 0)`. (This is ArUco's frame turned 180 degrees about X:
+//!   ArUco has +Y up the page and +Z out of it.) A camera looking down at the marker sees
+//!   the marker's +Z pointing away from it.
+//! - Poses are `camera_from_marker` ([`Pose`]): `p_camera = R * p_marker + t`.
+
+pub mod board;
+pub mod detect;
+pub mod filter;
+pub mod marker;
+pub mod pose;
+pub mod tracker;
+
+pub use board::Board;
+pub use detect::{Detection, Detector, DetectorConfig, GrayImage, TagFamily};
+pub use filter::{OneEuro, PoseFilter, PoseFilterConfig};
+pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
+pub use pose::{estimate_tag_pose, tag_object_points, Pose, PoseCandidate, PoseEstimate};
+pub use tracker::{TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig};
+
+/// Errors of the tracker. A frame without tags is not an error.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackError {
+    /// An image buffer whose length does not match its size.
+    #[error("image buffer of {len} bytes does not match {width}x{height}")]
+    BadImage { width: u32, height: u32, len: usize },
+    /// An unknown tag family name.
+    #[error("unknown tag family {0:?} (known: tag36h11, tag36h10, tag25h9, tag16h5, tagCircle21h7, tagCircle49h12, tagCustom48h12, tagStandard41h12, tagStandard52h13)")]
+    UnknownFamily(String),
+    /// An id outside the family.
+    #[error("{family} has no id {id} (ids 0..{count})")]
+    UnknownId {
+        family: TagFamily,
+        id: u32,
+        count: u32,
+    },
+    /// Invalid settings.
+    #[error("invalid configuration: {0}")]
+    Config(String),
+    /// The detector library failed.
+    #[error("AprilTag detector: {0}")]
+    Detector(String),
+    /// Pose estimation could not run on these points.
+    #[error("pose estimation failed: {0}")]
+    Pose(String),
+}
+
+impl TrackError {
+    pub(crate) fn detector(e: impl std::fmt::Display) -> Self {
+        TrackError::Detector(e.to_string())
+    }
+}

@@ -1,0 +1,353 @@
+//! Tracking over time: an explicit state machine with hysteresis, events, pose filtering and
+//! region-of-interest search.
+//!
+//! ```text
+//!  Searching --seen--> Detected --seen N frames--> Tracked <------------------+
+//!      ^                  |                          | missing M frames       | seen
+//!      |  missing         |                          v                        | (Recovered)
+//!      +------------------+           Searching <-- Lost --------------------+
+//!                                   (missing M + K frames in all)
+//! ```
+//! While Tracked with fewer than M missing frames the last filtered pose is kept
+//! (`coasting`). Events: [`TrackEvent`].
+
+use glam::DVec2;
+use pa_camera::CameraModel;
+
+use crate::board::{Board, BoardPose};
+use crate::{Detection, Detector, DetectorConfig, GrayImage, Pose, PoseCandidate, PoseFilter};
+use crate::{PoseFilterConfig, TagFamily, TrackError};
+
+/// Tracking states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum TrackState {
+    /// Nothing seen recently: full-frame search.
+    Searching,
+    /// Seen, but for fewer than `frames_to_track` consecutive frames.
+    Detected,
+    /// Seen steadily; poses are reported (also while briefly missing).
+    Tracked,
+    /// Missing for `frames_to_lose` frames; no pose is reported.
+    Lost,
+}
+
+/// Transitions a caller can react to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum TrackEvent {
+    /// Searching -> Detected: the target appeared.
+    Found,
+    /// Detected -> Tracked: seen long enough.
+    Tracked,
+    /// Detected -> Searching: it vanished before being tracked.
+    Dropped,
+    /// Tracked -> Lost.
+    Lost,
+    /// Lost -> Tracked: seen again.
+    Recovered,
+    /// Lost -> Searching: missing for too long.
+    SearchRestarted,
+}
+
+/// What to track.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrackTarget {
+    /// One tag centred on the marker origin.
+    Tag {
+        family: TagFamily,
+        id: u32,
+        size_m: f64,
+    },
+    /// A board of tags.
+    Board(Board),
+}
+
+impl TrackTarget {
+    fn board(&self) -> Board {
+        match self {
+            TrackTarget::Tag { family, id, size_m } => Board::single(*family, *id, *size_m),
+            TrackTarget::Board(b) => b.clone(),
+        }
+    }
+}
+
+/// Tracker settings.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct TrackerConfig {
+    /// N: consecutive frames seen to go from Detected to Tracked.
+    pub frames_to_track: u32,
+    /// M: consecutive frames missing to go from Tracked to Lost.
+    pub frames_to_lose: u32,
+    /// K: further missing frames to go from Lost back to Searching.
+    pub frames_to_search: u32,
+    /// Search around the last position first.
+    pub use_roi: bool,
+    /// Margin around the last target box, as a fraction of its larger side.
+    pub roi_margin: f64,
+    /// Reject poses with an RMS reprojection error above this (pixels).
+    pub max_rms_px: f64,
+    pub filter: PoseFilterConfig,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            frames_to_track: 3,
+            frames_to_lose: 5,
+            frames_to_search: 30,
+            use_roi: true,
+            roi_margin: 0.5,
+            max_rms_px: 3.0,
+            filter: PoseFilterConfig::default(),
+        }
+    }
+}
+
+/// The result of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackOutput {
+    pub state: TrackState,
+    /// Transitions that happened on this frame.
+    pub events: Vec<TrackEvent>,
+    /// Filtered `camera_from_marker` (Tracked only; the last one while coasting).
+    pub pose: Option<Pose>,
+    /// This frame's unfiltered pose (after the consistent choice of the planar flip).
+    pub raw: Option<PoseCandidate>,
+    /// True while Tracked but not seen on this frame.
+    pub coasting: bool,
+    /// All detections of this frame (any id).
+    pub detections: Vec<Detection>,
+    /// Ids of the target's tags used for the pose.
+    pub used_ids: Vec<u32>,
+    /// Whether the region-of-interest search found the target (no full-frame pass).
+    pub used_roi: bool,
+}
+
+/// The tracker.
+pub struct Tracker {
+    pub config: TrackerConfig,
+    camera: CameraModel,
+    board: Board,
+    detector: Detector,
+    filter: PoseFilter,
+    state: TrackState,
+    seen: u32,
+    missed: u32,
+    last_pose: Option<Pose>,
+    last_filtered: Option<Pose>,
+    roi: Option<[f64; 4]>,
+}
+
+impl Tracker {
+    /// A tracker for `target` seen by `camera`.
+    pub fn new(
+        camera: CameraModel,
+        target: TrackTarget,
+        detector: DetectorConfig,
+        config: TrackerConfig,
+    ) -> Result<Self, TrackError> {
+        camera
+            .intrinsics
+            .validate()
+            .map_err(|e| TrackError::Config(e.to_string()))?;
+        let board = target.board();
+        if board.tags.is_empty() {
+            return Err(TrackError::Config("the board has no tags".into()));
+        }
+        let mut detector = detector;
+        if !detector.families.contains(&board.family) {
+            detector.families.push(board.family);
+        }
+        Ok(Self {
+            config,
+            camera,
+            board,
+            detector: Detector::new(detector)?,
+            filter: PoseFilter::new(config.filter),
+            state: TrackState::Searching,
+            seen: 0,
+            missed: 0,
+            last_pose: None,
+            last_filtered: None,
+            roi: None,
+        })
+    }
+
+    /// The current state.
+    pub fn state(&self) -> TrackState {
+        self.state
+    }
+
+    /// The tracked board.
+    pub fn board(&self) -> &Board {
+        &self.board
+    }
+
+    /// Back to Searching, forgetting history.
+    pub fn reset(&mut self) {
+        self.state = TrackState::Searching;
+        self.seen = 0;
+        self.missed = 0;
+        self.last_pose = None;
+        self.last_filtered = None;
+        self.roi = None;
+        self.filter.reset();
+    }
+
+    /// Processes one frame taken at `time_s` seconds.
+    pub fn update(&mut self, frame: &GrayImage, time_s: f64) -> Result<TrackOutput, TrackError> {
+        let mut used_roi = false;
+        let mut detections = None;
+        if self.config.use_roi && self.state != TrackState::Searching {
+            if let Some([x0, y0, x1, y1]) = self.roi {
+                let w = frame.width as f64;
+                let h = frame.height as f64;
+                let (x0, y0) = (x0.clamp(0.0, w - 1.0), y0.clamp(0.0, h - 1.0));
+                let (x1, y1) = (x1.clamp(0.0, w), y1.clamp(0.0, h));
+                if x1 - x0 >= 16.0 && y1 - y0 >= 16.0 && (x1 - x0) * (y1 - y0) < 0.6 * w * h {
+                    let d = self.detector.detect_roi(
+                        frame,
+                        x0 as u32,
+                        y0 as u32,
+                        (x1 - x0).ceil() as u32,
+                        (y1 - y0).ceil() as u32,
+                    )?;
+                    if d.iter().any(|d| self.board.contains(d)) {
+                        used_roi = true;
+                        detections = Some(d);
+                    }
+                }
+            }
+        }
+        let detections = match detections {
+            Some(d) => d,
+            None => self.detector.detect(frame)?,
+        };
+        let mut out = self.update_with_detections(detections, time_s)?;
+        out.used_roi = used_roi;
+        Ok(out)
+    }
+
+    /// Runs the state machine on detections made elsewhere.
+    pub fn update_with_detections(
+        &mut self,
+        detections: Vec<Detection>,
+        time_s: f64,
+    ) -> Result<TrackOutput, TrackError> {
+        let board_pose: Option<BoardPose> =
+            match self.board.estimate_pose(&self.camera, &detections) {
+                Ok(p) => p,
+                // Degenerate corners (e.g. a sliver of a tag): treat as not seen.
+                Err(TrackError::Pose(_)) => None,
+                Err(e) => return Err(e),
+            };
+        let observed = board_pose.as_ref().and_then(|bp| {
+            let c = match &self.last_pose {
+                Some(prev) => bp.estimate.choose_consistent(prev),
+                None => bp.estimate.best,
+            };
+            (c.rms_px <= self.config.max_rms_px).then_some((c, bp))
+        });
+
+        let mut events = Vec::new();
+        let n = self.config.frames_to_track.max(1);
+        let m = self.config.frames_to_lose.max(1);
+        let k = self.config.frames_to_search;
+        let mut raw = None;
+        let mut used_ids = Vec::new();
+        if let Some((cand, bp)) = observed {
+            raw = Some(cand);
+            used_ids = bp.used_ids.clone();
+            self.missed = 0;
+            self.seen += 1;
+            match self.state {
+                TrackState::Searching => {
+                    self.seen = 1;
+                    self.filter.reset();
+                    self.state = TrackState::Detected;
+                    events.push(TrackEvent::Found);
+                    if n <= 1 {
+                        self.state = TrackState::Tracked;
+                        events.push(TrackEvent::Tracked);
+                    }
+                }
+                TrackState::Detected => {
+                    if self.seen >= n {
+                        self.state = TrackState::Tracked;
+                        events.push(TrackEvent::Tracked);
+                    }
+                }
+                TrackState::Tracked => {}
+                TrackState::Lost => {
+                    self.filter.reset();
+                    self.state = TrackState::Tracked;
+                    events.push(TrackEvent::Recovered);
+                }
+            }
+            self.last_pose = Some(cand.pose);
+            self.last_filtered = Some(self.filter.filter(cand.pose, time_s));
+            self.roi = Some(self.target_box(&cand.pose, &bp.correspondences));
+        } else {
+            self.seen = 0;
+            self.missed += 1;
+            match self.state {
+                TrackState::Searching => {}
+                TrackState::Detected => {
+                    self.state = TrackState::Searching;
+                    events.push(TrackEvent::Dropped);
+                    self.last_pose = None;
+                    self.roi = None;
+                }
+                TrackState::Tracked => {
+                    if self.missed >= m {
+                        self.state = TrackState::Lost;
+                        events.push(TrackEvent::Lost);
+                    }
+                }
+                TrackState::Lost => {
+                    if self.missed >= m + k {
+                        self.state = TrackState::Searching;
+                        events.push(TrackEvent::SearchRestarted);
+                        self.last_pose = None;
+                        self.last_filtered = None;
+                        self.roi = None;
+                    }
+                }
+            }
+        }
+        let pose = match self.state {
+            TrackState::Tracked => self.last_filtered,
+            _ => None,
+        };
+        Ok(TrackOutput {
+            state: self.state,
+            events,
+            pose,
+            raw,
+            coasting: self.state == TrackState::Tracked && raw.is_none(),
+            detections,
+            used_ids,
+            used_roi: false,
+        })
+    }
+
+    /// Box around the whole board projected with `pose`, plus the seen corners, with margin.
+    fn target_box(&self, pose: &Pose, seen: &[(glam::DVec3, DVec2)]) -> [f64; 4] {
+        let mut pts: Vec<DVec2> = seen.iter().map(|(_, p)| *p).collect();
+        for o in self.board.all_object_points() {
+            if let Some(p) = self.camera.pixel_from_camera(pose.transform_point(o)) {
+                if p.is_finite() {
+                    pts.push(p);
+                }
+            }
+        }
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for p in pts {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        let size = (hi - lo).max_element();
+        let margin = self.config.roi_margin * size + 16.0;
+        [lo.x - margin, lo.y - margin, hi.x + margin, hi.y + margin]
+    }
+}

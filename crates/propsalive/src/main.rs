@@ -1,0 +1,51 @@
+//! `propsalive`: the Props Alive command-line tool.
+//!
+//! The CLI is parsed in two stages (as ripgrep does): clap turns the raw flags into the
+//! `Args` structs of each command module, and each module resolves them into a checked
+//! configuration before any work starts, so that bad input fails fast with a clear message.
+
+mod cmd;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// Props Alive: augmented-reality stop-motion animation.
+///
+/// A physical key prop stands on a printed marker; Props Alive tracks it, animates its rigged
+/// digital twin through the in-between poses, textures the twin from the live camera image and
+/// composites the shot.
+#[derive(Parser)]
+#[command(name = "propsalive", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the built-in default job (nothing to download): writes out/demo/.
+    Demo(cmd::demo::Args),
+    /// Print a glTF model's nodes, skins, animations, counts and textures.
+    Inspect(cmd::inspect::Args),
+    /// Render a model's animation to PNG frames (camera framed automatically unless given).
+    Render(cmd::render::Args),
+    /// Write the model posed at one animation time as OBJ, STL or GLB (for 3D printing).
+    Export(cmd::export::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result: Result<()> = match cli.command {
+        Command::Demo(args) => cmd::demo::run(args),
+        Command::Inspect(args) => cmd::inspect::run(args),
+        Command::Render(args) => cmd::render::run(args),
+        Command::Export(args) => cmd::export::run(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
