@@ -4,7 +4,10 @@
 //! frame's animation pose into draw data (joint matrices, morph weights), so that skinning runs
 //! in the renderer's vertex stage.
 
+pub mod ar;
 pub mod framing;
+pub mod metrics;
+pub mod shot;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};

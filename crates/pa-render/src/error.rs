@@ -75,6 +75,12 @@ pub enum RenderError {
         expected: usize,
         actual: usize,
     },
+    /// [`crate::Renderer::update_texture`] was given data of another size than the texture.
+    #[error("texture is {expected:?} (width, height), the new data is {actual:?}")]
+    TextureSizeMismatch {
+        expected: (u32, u32),
+        actual: (u32, u32),
+    },
 
     /// A draw's skin has too many joints.
     #[error("draw #{draw}: {count} joint matrices, at most {max} are supported")]

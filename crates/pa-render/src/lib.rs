@@ -34,6 +34,33 @@
 //! reference. Up to 8 influences per vertex, [`MAX_JOINTS`] joints per draw,
 //! [`MAX_MORPH_TARGETS`] morph targets per mesh.
 //!
+//! # Live texturing
+//!
+//! [`Renderer::render_live`] colours the animated twin from the current camera frame at the
+//! projection (with lens distortion) of the same surface point in the key pose, with a
+//! key-pose visibility map ([`Renderer::render_visibility`]) deciding where the live sample
+//! is valid and a fallback elsewhere; see the [`live`] module for the formulas.
+//!
+//! ```no_run
+//! # use pa_render::*;
+//! # fn demo(r: &mut Renderer, mesh: &GpuMesh, tex: &GpuTexture, camera: &CpuCamera,
+//! #         image: &CpuTexture, key: &[glam::Mat4], now: &[glam::Mat4])
+//! #         -> Result<(), RenderError> {
+//! let frame = r.upload_frame(image)?; // later frames: r.update_texture(&frame, image)?
+//! let frame_camera = LiveCamera::from_render_camera(camera, pa_camera::Distortion::default());
+//! let mut draw = Draw::new(mesh, glam::Mat4::IDENTITY);
+//! draw.texture = Some(tex);
+//! draw.joint_matrices = key;
+//! let visibility = r.render_visibility(camera, &[draw], 640, 480)?;
+//! draw.joint_matrices = now;
+//! let live = LiveTexturing::new(&frame, frame_camera, glam::Mat4::IDENTITY)
+//!     .with_key_pose(key, &[])
+//!     .with_visibility(&visibility);
+//! let out = r.render_live(camera, None, &[draw.with_live(live)], [0.0; 4], 640, 480)?;
+//! assert_eq!(out.live_valid.len(), 640 * 480);
+//! # Ok(()) }
+//! ```
+//!
 //! # Backends
 //!
 //! `WGPU_BACKEND` selects the backend (`vulkan`, `gl`); without a GPU, Mesa's lavapipe
@@ -43,6 +70,7 @@
 
 mod context;
 mod error;
+pub mod live;
 mod mesh;
 mod pipeline;
 mod readback;
@@ -50,6 +78,7 @@ mod renderer;
 mod texture;
 
 pub use error::{RenderError, NO_ADAPTER_HINT};
+pub use live::{GpuVisibility, LiveCamera, LiveDraw, LiveRenderedFrame, LiveSample, LiveTexturing};
 pub use mesh::{CpuMesh, GpuMesh, MAX_MORPH_TARGETS};
 pub use renderer::{
     CpuCamera, DirectionalLight, Draw, Lighting, RenderedFrame, Renderer, SkinnedVertices,

@@ -12,6 +12,13 @@
 //! | 1     | 2       | morph weights (storage)                   | vertex, compute    |
 //! | 2     | 0, 1    | base colour texture + sampler             | fragment           |
 //! | 2     | 0       | skinned output (storage, read-write)      | compute            |
+//! | 3     | 0       | `LiveUniforms` (uniform)                  | live vertex + frag |
+//! | 3     | 1, 2    | camera frame + clamp/linear sampler       | live fragment      |
+//! | 3     | 3       | visibility map (R32Uint camera-z bits)    | live fragment      |
+//!
+//! Live draws append their key-pose joint matrices and morph weights to the draw's own in
+//! group 1 (bases and counts in `LiveUniforms::key_counts`), so the vertex stage binds no more
+//! storage buffers than the plain render pipeline.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -21,12 +28,15 @@ pub(crate) const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8U
 pub(crate) const CAMERA_Z_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
 /// Depth-test buffer format.
 pub(crate) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Live-texturing validity target format (one `LiveSample` code per pixel).
+pub(crate) const LIVE_CODE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 /// Workgroup size of `cs_skin`.
 pub(crate) const SKIN_WORKGROUP_SIZE: u32 = 64;
 
 const SKINNING_WGSL: &str = include_str!("shaders/skinning.wgsl");
 const RENDER_WGSL: &str = include_str!("shaders/render.wgsl");
 const SKIN_COMPUTE_WGSL: &str = include_str!("shaders/skin_compute.wgsl");
+const LIVE_WGSL: &str = include_str!("shaders/live.wgsl");
 
 /// Per-draw uniforms (`DrawUniforms` in `skinning.wgsl`).
 #[repr(C)]
@@ -43,15 +53,40 @@ pub(crate) struct DrawUniforms {
     pub flags: [u32; 4],
 }
 
+/// Per-draw live-texturing uniforms (`LiveUniforms` in `live.wgsl`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub(crate) struct LiveUniforms {
+    pub key_world_from_mesh: [[f32; 4]; 4],
+    pub frame_camera_from_world: [[f32; 4]; 4],
+    pub visibility_from_frame_camera: [[f32; 4]; 4],
+    pub frame_intrinsics: [f32; 4],
+    pub frame_size: [f32; 4],
+    pub distortion: [f32; 4],
+    pub distortion_k3_tolerances: [f32; 4],
+    pub visibility_intrinsics: [f32; 4],
+    pub visibility_size: [f32; 4],
+    pub fallback_gain: [f32; 4],
+    pub key_counts: [u32; 4],
+    pub flags: [u32; 4],
+}
+
 /// Everything created once per renderer.
 pub(crate) struct Pipelines {
     pub mesh_layout: wgpu::BindGroupLayout,
     pub draw_layout: wgpu::BindGroupLayout,
     pub texture_layout: wgpu::BindGroupLayout,
     pub skin_output_layout: wgpu::BindGroupLayout,
+    pub live_layout: wgpu::BindGroupLayout,
     pub render: wgpu::RenderPipeline,
+    /// `vs_main` + `fs_visibility`: camera-z bits only (visibility maps).
+    pub visibility: wgpu::RenderPipeline,
+    /// `vs_live` + `fs_live`: colour, camera-z bits and live codes.
+    pub live: wgpu::RenderPipeline,
     pub skin: wgpu::ComputePipeline,
     pub sampler: wgpu::Sampler,
+    /// Camera frames: bilinear, no mips, clamp to edge.
+    pub frame_sampler: wgpu::Sampler,
 }
 
 fn storage_entry(
@@ -124,6 +159,50 @@ impl Pipelines {
                 entries: &[storage_entry(0, wgpu::ShaderStages::COMPUTE, false)],
             });
 
+        let live_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pa-render live layout"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(
+                            std::mem::size_of::<LiveUniforms>() as u64,
+                        ),
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Uint,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+            ],
+        });
+
         let render_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("pa-render render.wgsl"),
             source: wgpu::ShaderSource::Wgsl(format!("{SKINNING_WGSL}\n{RENDER_WGSL}").into()),
@@ -188,6 +267,106 @@ impl Pipelines {
             cache: None,
         });
 
+        let visibility = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("pa-render visibility pipeline"),
+            layout: Some(&render_layout),
+            vertex: wgpu::VertexState {
+                module: &render_module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &render_module,
+                entry_point: Some("fs_visibility"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: CAMERA_Z_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let live_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("pa-render live.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(format!("{SKINNING_WGSL}\n{LIVE_WGSL}").into()),
+        });
+        let live_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pa-render live pipeline layout"),
+            bind_group_layouts: &[
+                Some(&mesh_layout),
+                Some(&draw_layout),
+                Some(&texture_layout),
+                Some(&live_layout),
+            ],
+            immediate_size: 0,
+        });
+        let live = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("pa-render live pipeline"),
+            layout: Some(&live_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &live_module,
+                entry_point: Some("vs_live"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &live_module,
+                entry_point: Some("fs_live"),
+                compilation_options: Default::default(),
+                targets: &[
+                    Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(wgpu::ColorTargetState {
+                        format: CAMERA_Z_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(wgpu::ColorTargetState {
+                        format: LIVE_CODE_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                ],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
         let skin_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("pa-render skin pipeline layout"),
             bind_group_layouts: &[
@@ -217,14 +396,29 @@ impl Pipelines {
             ..Default::default()
         });
 
+        let frame_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("pa-render camera frame sampler"),
+            address_mode_u: wgpu::AddressMode::ClampToEdge,
+            address_mode_v: wgpu::AddressMode::ClampToEdge,
+            address_mode_w: wgpu::AddressMode::ClampToEdge,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Nearest,
+            ..Default::default()
+        });
+
         Self {
             mesh_layout,
             draw_layout,
             texture_layout,
             skin_output_layout,
+            live_layout,
             render,
+            visibility,
+            live,
             skin,
             sampler,
+            frame_sampler,
         }
     }
 }

@@ -1,12 +1,18 @@
 //! Offscreen targets and GPU -> CPU readback (wgpu's 256-byte row alignment handled here).
 
 use crate::error::RenderError;
-use crate::pipeline::{CAMERA_Z_FORMAT, COLOR_FORMAT, DEPTH_FORMAT};
+use crate::pipeline::{CAMERA_Z_FORMAT, COLOR_FORMAT, DEPTH_FORMAT, LIVE_CODE_FORMAT};
 
 /// Bytes per row of a `width`-texel row of 4-byte texels, padded to
 /// `COPY_BYTES_PER_ROW_ALIGNMENT`.
 pub(crate) fn padded_bytes_per_row(width: u32) -> u32 {
-    let unpadded = width * 4;
+    padded_bytes_per_row_of(width, 4)
+}
+
+/// Bytes per row of a `width`-texel row of `texel_bytes`-byte texels, padded to
+/// `COPY_BYTES_PER_ROW_ALIGNMENT`.
+pub(crate) fn padded_bytes_per_row_of(width: u32, texel_bytes: u32) -> u32 {
+    let unpadded = width * texel_bytes;
     let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     unpadded.div_ceil(align) * align
 }
@@ -113,6 +119,74 @@ impl Targets {
                 size,
             );
         }
+    }
+}
+
+/// The targets of a live-textured frame: [`Targets`] plus the R8Uint live-code target and its
+/// readback buffer.
+pub(crate) struct LiveTargets {
+    pub base: Targets,
+    pub code: wgpu::Texture,
+    pub code_view: wgpu::TextureView,
+    pub code_readback: wgpu::Buffer,
+}
+
+impl LiveTargets {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Self {
+        let base = Targets::new(device, width, height);
+        let code = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("pa-render live code target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: LIVE_CODE_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let code_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pa-render live code readback"),
+            size: u64::from(padded_bytes_per_row_of(width, 1)) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Self {
+            base,
+            code_view: code.create_view(&Default::default()),
+            code,
+            code_readback,
+        }
+    }
+
+    /// Records the copies of all three colour targets into their readback buffers.
+    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.base.record_copies(encoder);
+        let (width, height) = (self.base.width, self.base.height);
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.code,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.code_readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_bytes_per_row_of(width, 1)),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
     }
 }
 

@@ -3,14 +3,18 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use bytemuck::Zeroable;
 use glam::Mat4;
 use wgpu::util::DeviceExt;
 
 use crate::context::{describe, GpuContext};
 use crate::error::RenderError;
+use crate::live::{GpuVisibility, LiveDraw, LiveRenderedFrame, LiveTexturing};
 use crate::mesh::{self, CpuMesh, GpuMesh};
-use crate::pipeline::{DrawUniforms, Pipelines, SKIN_WORKGROUP_SIZE};
-use crate::readback::{self, Targets};
+use crate::pipeline::{
+    DrawUniforms, LiveUniforms, Pipelines, CAMERA_Z_FORMAT, DEPTH_FORMAT, SKIN_WORKGROUP_SIZE,
+};
+use crate::readback::{self, LiveTargets, Targets};
 use crate::texture::{self, CpuTexture, GpuTexture};
 
 /// Most joint matrices per draw.
@@ -68,7 +72,7 @@ pub struct Draw<'a> {
     pub world_from_mesh: Mat4,
     /// `joint_matrices[j] = world_from_joint[j] * inverse_bind_matrix[j]`. Empty: rigid draw
     /// with `world_from_mesh` (for a skinned mesh this draws the bind pose). Non-empty: world
-    /// position = sum_i w_i * joint_matrices[j_i] * p.
+    /// position = `sum_i w_i * joint_matrices[j_i] * p`.
     pub joint_matrices: &'a [Mat4],
     /// Morph target weights, applied before skinning: p = base + sum_k w_k delta_k. Empty
     /// (all zero) or one per morph target.
@@ -138,7 +142,10 @@ pub struct Renderer {
     ctx: GpuContext,
     pipelines: Pipelines,
     white_texture: GpuTexture,
+    /// 1x1 empty R32Uint map bound as the visibility map of draws without one.
+    empty_visibility_view: wgpu::TextureView,
     targets: Option<Targets>,
+    live_targets: Option<LiveTargets>,
 }
 
 fn mat(m: &Mat4) -> [[f32; 4]; 4] {
@@ -164,7 +171,25 @@ impl Renderer {
             &pipelines.sampler,
             id,
             &CpuTexture::solid(1, 1, [255; 4]),
+            true,
         )?;
+        let empty_visibility_view = ctx
+            .device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("pa-render empty visibility map"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: CAMERA_Z_FORMAT,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default());
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(RenderError::Gpu {
                 during: "pipeline creation",
@@ -176,7 +201,9 @@ impl Renderer {
             ctx,
             pipelines,
             white_texture,
+            empty_visibility_view,
             targets: None,
+            live_targets: None,
         })
     }
 
@@ -229,9 +256,57 @@ impl Renderer {
             &self.pipelines.sampler,
             self.id,
             texture,
+            true,
         );
         self.pop_scope(scope, "texture upload")?;
         result
+    }
+
+    /// Uploads a camera frame for live texturing: one mip level (sampled bilinearly at level
+    /// 0 with clamp-to-edge by [`Renderer::render_live`]). Refresh it every frame with
+    /// [`Renderer::update_texture`] rather than uploading anew.
+    pub fn upload_frame(&mut self, frame: &CpuTexture) -> Result<GpuTexture, RenderError> {
+        let scope = self
+            .ctx
+            .device
+            .push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let result = texture::upload(
+            &self.ctx.device,
+            &self.ctx.queue,
+            self.ctx.limits.max_texture_dimension_2d,
+            &self.pipelines.texture_layout,
+            &self.pipelines.sampler,
+            self.id,
+            frame,
+            false,
+        );
+        self.pop_scope(scope, "frame upload")?;
+        result
+    }
+
+    /// Overwrites the contents of `texture` (from [`Renderer::upload_frame`] or
+    /// [`Renderer::upload_texture`]; the mip chain, if any, is rebuilt on the CPU) with `data`
+    /// of the same size. No GPU allocation: the per-frame path for camera frames.
+    pub fn update_texture(
+        &mut self,
+        texture: &GpuTexture,
+        data: &CpuTexture,
+    ) -> Result<(), RenderError> {
+        if texture.renderer_id != self.id {
+            return Err(RenderError::ForeignResource {
+                draw: 0,
+                what: "texture",
+            });
+        }
+        data.validate(self.ctx.limits.max_texture_dimension_2d)?;
+        if (data.width, data.height) != (texture.width, texture.height) {
+            return Err(RenderError::TextureSizeMismatch {
+                expected: (texture.width, texture.height),
+                actual: (data.width, data.height),
+            });
+        }
+        texture::write_levels(&self.ctx.queue, &texture.texture, data);
+        Ok(())
     }
 
     fn pop_scope(
@@ -313,6 +388,20 @@ impl Renderer {
         joint_matrices: &[Mat4],
         morph_weights: &[f32],
     ) -> wgpu::BindGroup {
+        self.draw_bind_group_with_key(uniforms, joint_matrices, morph_weights, &[], &[])
+    }
+
+    /// Group 1 bind group of a draw whose key pose (live texturing) follows its own joint
+    /// matrices and morph weights in the same buffers: key joints start at index
+    /// `joint_matrices.len()`, key weights at `morph_weights.len()`.
+    fn draw_bind_group_with_key(
+        &self,
+        uniforms: &DrawUniforms,
+        joint_matrices: &[Mat4],
+        morph_weights: &[f32],
+        key_joint_matrices: &[Mat4],
+        key_morph_weights: &[f32],
+    ) -> wgpu::BindGroup {
         let device = &self.ctx.device;
         let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("pa-render draw uniforms"),
@@ -320,24 +409,30 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         // Storage bindings must not be empty: pad with an identity / a zero.
-        let joints: Vec<[[f32; 4]; 4]> = if joint_matrices.is_empty() {
-            vec![mat(&Mat4::IDENTITY)]
-        } else {
-            joint_matrices.iter().map(mat).collect()
-        };
+        let mut joints: Vec<[[f32; 4]; 4]> = joint_matrices
+            .iter()
+            .chain(key_joint_matrices)
+            .map(mat)
+            .collect();
+        if joints.is_empty() {
+            joints.push(mat(&Mat4::IDENTITY));
+        }
         let joint_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("pa-render joint matrices"),
             contents: bytemuck::cast_slice(&joints),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let weights: &[f32] = if morph_weights.is_empty() {
-            &[0.0]
-        } else {
-            morph_weights
-        };
+        let mut weights: Vec<f32> = morph_weights
+            .iter()
+            .chain(key_morph_weights)
+            .copied()
+            .collect();
+        if weights.is_empty() {
+            weights.push(0.0);
+        }
         let weight_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("pa-render morph weights"),
-            contents: bytemuck::cast_slice(weights),
+            contents: bytemuck::cast_slice(&weights),
             usage: wgpu::BufferUsages::STORAGE,
         });
         device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -360,6 +455,151 @@ impl Renderer {
         })
     }
 
+    /// Checks a render target size against the device limits.
+    fn check_render_size(&self, width: u32, height: u32) -> Result<(), RenderError> {
+        let max = self.max_render_side();
+        let padded_row = u64::from(readback::padded_bytes_per_row(width));
+        if width == 0
+            || height == 0
+            || width > max
+            || height > max
+            || padded_row * u64::from(height) > self.ctx.limits.max_buffer_size
+        {
+            return Err(RenderError::InvalidRenderSize { width, height, max });
+        }
+        Ok(())
+    }
+
+    /// Checks one draw (resources, deformation, finiteness).
+    fn validate_draw(&self, i: usize, d: &Draw<'_>) -> Result<(), RenderError> {
+        self.validate_deformation(i, d.mesh, d.joint_matrices, d.morph_weights)?;
+        if let Some(t) = d.texture {
+            if t.renderer_id != self.id {
+                return Err(RenderError::ForeignResource {
+                    draw: i,
+                    what: "texture",
+                });
+            }
+        }
+        if !finite_mat(&d.world_from_mesh) {
+            return Err(RenderError::NonFiniteDrawInput {
+                draw: i,
+                what: "world_from_mesh",
+            });
+        }
+        if !d.base_color_factor.iter().all(|c| c.is_finite()) {
+            return Err(RenderError::NonFiniteDrawInput {
+                draw: i,
+                what: "base_color_factor",
+            });
+        }
+        Ok(())
+    }
+
+    /// Checks the live-texturing block of draw `i`.
+    fn validate_live(
+        &self,
+        i: usize,
+        d: &Draw<'_>,
+        l: &LiveTexturing<'_>,
+    ) -> Result<(), RenderError> {
+        if l.frame.renderer_id != self.id {
+            return Err(RenderError::ForeignResource {
+                draw: i,
+                what: "live frame texture",
+            });
+        }
+        if let Some(v) = l.visibility {
+            if v.renderer_id != self.id {
+                return Err(RenderError::ForeignResource {
+                    draw: i,
+                    what: "visibility map",
+                });
+            }
+        }
+        self.validate_deformation(i, d.mesh, l.key_joint_matrices, l.key_morph_weights)?;
+        let finite_checks: [(&'static str, bool); 5] = [
+            ("key_world_from_mesh", finite_mat(&l.key_world_from_mesh)),
+            (
+                "frame_camera.camera_from_world",
+                finite_mat(&l.frame_camera.camera_from_world),
+            ),
+            (
+                "frame_camera.distortion",
+                [
+                    l.frame_camera.distortion.k1,
+                    l.frame_camera.distortion.k2,
+                    l.frame_camera.distortion.p1,
+                    l.frame_camera.distortion.p2,
+                    l.frame_camera.distortion.k3,
+                ]
+                .iter()
+                .all(|x| x.is_finite()),
+            ),
+            (
+                "fallback_gain_rgb",
+                l.fallback_gain_rgb.iter().all(|x| x.is_finite()),
+            ),
+            (
+                "live tolerances",
+                [l.depth_tolerance_rel, l.depth_tolerance_m, l.min_facing_cos]
+                    .iter()
+                    .all(|x| x.is_finite()),
+            ),
+        ];
+        for (what, ok) in finite_checks {
+            if !ok {
+                return Err(RenderError::NonFiniteDrawInput { draw: i, what });
+            }
+        }
+        l.frame_camera
+            .intrinsics
+            .validate()
+            .map_err(|e| RenderError::InvalidCamera(format!("draw #{i}: frame camera: {e}")))
+    }
+
+    /// Group 1 uniforms of a draw seen through `clip_from_world`.
+    fn draw_uniforms(
+        d: &Draw<'_>,
+        clip_from_world: &Mat4,
+        camera_from_world: &Mat4,
+        light: &LightUniforms,
+    ) -> DrawUniforms {
+        let (toward_light, light_rgb, ambient_rgb, lit) = *light;
+        let skinned = !d.joint_matrices.is_empty();
+        let mirrored = !skinned && d.world_from_mesh.determinant() < 0.0;
+        DrawUniforms {
+            clip_from_world: mat(clip_from_world),
+            camera_from_world: mat(camera_from_world),
+            world_from_mesh: mat(&d.world_from_mesh),
+            base_color_factor: d.base_color_factor,
+            toward_light_world: toward_light,
+            light_rgb,
+            ambient_rgb,
+            counts: [
+                d.joint_matrices.len() as u32,
+                d.morph_weights.len() as u32,
+                d.mesh.vertex_count,
+                lit,
+            ],
+            flags: [u32::from(mirrored), 0, 0, 0],
+        }
+    }
+
+    fn clear_color(clear_rgba: [f32; 4]) -> Result<wgpu::Color, RenderError> {
+        if !clear_rgba.iter().all(|c| c.is_finite()) {
+            return Err(RenderError::InvalidLighting(format!(
+                "clear colour {clear_rgba:?} is not finite"
+            )));
+        }
+        Ok(wgpu::Color {
+            r: f64::from(clear_rgba[0]),
+            g: f64::from(clear_rgba[1]),
+            b: f64::from(clear_rgba[2]),
+            a: f64::from(clear_rgba[3]),
+        })
+    }
+
     /// Renders `draws` seen by `camera` into a `width` x `height` image and reads back colour
     /// (sRGB RGBA8) and camera-space depth. `clear_rgba` is the background in linear RGB with
     /// straight alpha (alpha 0 for compositing). `lighting: None` renders unlit.
@@ -372,47 +612,14 @@ impl Renderer {
         width: u32,
         height: u32,
     ) -> Result<RenderedFrame, RenderError> {
-        let max = self.max_render_side();
-        let padded_row = u64::from(readback::padded_bytes_per_row(width));
-        if width == 0
-            || height == 0
-            || width > max
-            || height > max
-            || padded_row * u64::from(height) > self.ctx.limits.max_buffer_size
-        {
-            return Err(RenderError::InvalidRenderSize { width, height, max });
-        }
+        self.check_render_size(width, height)?;
         let clip_from_world = camera_clip_from_world(camera, width, height)?;
-        let (toward_light, light_rgb, ambient_rgb, lit) = lighting_uniforms(lighting)?;
-        if !clear_rgba.iter().all(|c| c.is_finite()) {
-            return Err(RenderError::InvalidLighting(format!(
-                "clear colour {clear_rgba:?} is not finite"
-            )));
-        }
+        let light = lighting_uniforms(lighting)?;
+        let clear = Self::clear_color(clear_rgba)?;
 
         // Validate everything before touching the GPU.
         for (i, d) in draws.iter().enumerate() {
-            self.validate_deformation(i, d.mesh, d.joint_matrices, d.morph_weights)?;
-            if let Some(t) = d.texture {
-                if t.renderer_id != self.id {
-                    return Err(RenderError::ForeignResource {
-                        draw: i,
-                        what: "texture",
-                    });
-                }
-            }
-            if !finite_mat(&d.world_from_mesh) {
-                return Err(RenderError::NonFiniteDrawInput {
-                    draw: i,
-                    what: "world_from_mesh",
-                });
-            }
-            if !d.base_color_factor.iter().all(|c| c.is_finite()) {
-                return Err(RenderError::NonFiniteDrawInput {
-                    draw: i,
-                    what: "base_color_factor",
-                });
-            }
+            self.validate_draw(i, d)?;
         }
 
         let device = &self.ctx.device;
@@ -429,24 +636,8 @@ impl Renderer {
         let bind_groups: Vec<wgpu::BindGroup> = draws
             .iter()
             .map(|d| {
-                let skinned = !d.joint_matrices.is_empty();
-                let mirrored = !skinned && d.world_from_mesh.determinant() < 0.0;
-                let uniforms = DrawUniforms {
-                    clip_from_world: mat(&clip_from_world),
-                    camera_from_world: mat(&camera.camera_from_world),
-                    world_from_mesh: mat(&d.world_from_mesh),
-                    base_color_factor: d.base_color_factor,
-                    toward_light_world: toward_light,
-                    light_rgb,
-                    ambient_rgb,
-                    counts: [
-                        d.joint_matrices.len() as u32,
-                        d.morph_weights.len() as u32,
-                        d.mesh.vertex_count,
-                        lit,
-                    ],
-                    flags: [u32::from(mirrored), 0, 0, 0],
-                };
+                let uniforms =
+                    Self::draw_uniforms(d, &clip_from_world, &camera.camera_from_world, &light);
                 self.draw_bind_group(&uniforms, d.joint_matrices, d.morph_weights)
             })
             .collect();
@@ -458,39 +649,14 @@ impl Renderer {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("pa-render main pass"),
                 color_attachments: &[
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &targets.color_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: f64::from(clear_rgba[0]),
-                                g: f64::from(clear_rgba[1]),
-                                b: f64::from(clear_rgba[2]),
-                                a: f64::from(clear_rgba[3]),
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
-                    Some(wgpu::RenderPassColorAttachment {
-                        view: &targets.camera_z_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            // Bits 0 = 0.0 = nothing drawn (drawn surfaces have z >= near > 0).
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    }),
+                    Some(color_attachment(&targets.color_view, clear)),
+                    // Bits 0 = 0.0 = nothing drawn (drawn surfaces have z >= near > 0).
+                    Some(color_attachment(
+                        &targets.camera_z_view,
+                        wgpu::Color::TRANSPARENT,
+                    )),
                 ],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
+                depth_stencil_attachment: Some(depth_attachment(&targets.depth_view)),
                 timestamp_writes: None,
                 occlusion_query_set: None,
                 multiview_mask: None,
@@ -517,39 +683,357 @@ impl Renderer {
             });
         }
 
-        let data = readback::read_buffers(
-            device,
-            &[&targets.color_readback, &targets.camera_z_readback],
-        );
-        let (color, camera_z) = match data.as_deref() {
-            Ok([color, camera_z]) => (color, camera_z),
-            _ => {
-                return Err(data.err().unwrap_or_else(|| {
-                    RenderError::Readback("unexpected readback buffer count".to_owned())
-                }));
-            }
-        };
-        let row = width as usize * 4;
-        let padded_row = padded_row as usize;
-        let rgba8 = readback::unpad_rows(color, row, padded_row, height as usize);
-        let depth_m = readback::unpad_rows(camera_z, row, padded_row, height as usize)
-            .chunks_exact(4)
-            .map(|b| {
-                let z = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
-                if z > 0.0 && z.is_finite() {
-                    z
-                } else {
-                    f32::INFINITY
-                }
-            })
-            .collect();
+        let frame = read_frame(device, &targets)?;
         self.targets = Some(targets);
-        Ok(RenderedFrame {
+        Ok(frame)
+    }
+
+    /// Renders the key-pose visibility map: the camera-space z of the nearest surface of
+    /// `draws` seen by `camera` (pinhole: rasterisation has no lens distortion; the map is
+    /// looked up with the undistorted projection), `width` x `height` texels, kept on the GPU
+    /// for [`LiveTexturing::visibility`]. `draws` are normally the key poses of the live draws
+    /// ([`LiveDraw::key_pose_draw`]) plus any real occluder, and `camera` the frame camera
+    /// (same pose and intrinsics; its near/far clip the map).
+    pub fn render_visibility(
+        &mut self,
+        camera: &CpuCamera,
+        draws: &[Draw<'_>],
+        width: u32,
+        height: u32,
+    ) -> Result<GpuVisibility, RenderError> {
+        self.check_render_size(width, height)?;
+        let device = &self.ctx.device;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let size = wgpu::Extent3d {
             width,
             height,
-            rgba8,
-            depth_m,
-        })
+            depth_or_array_layers: 1,
+        };
+        let make = |label, format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let camera_z = make(
+            "pa-render visibility map",
+            CAMERA_Z_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let depth = make(
+            "pa-render visibility depth buffer",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        self.pop_scope(scope, "visibility map allocation")?;
+        let mut visibility = GpuVisibility {
+            renderer_id: self.id,
+            width,
+            height,
+            camera: *camera,
+            camera_z_view: camera_z.create_view(&Default::default()),
+            depth_view: depth.create_view(&Default::default()),
+        };
+        self.update_visibility(&mut visibility, camera, draws)?;
+        Ok(visibility)
+    }
+
+    /// Re-renders an existing visibility map (same size, no allocation) for a new camera pose
+    /// or key pose. See [`Renderer::render_visibility`].
+    pub fn update_visibility(
+        &mut self,
+        visibility: &mut GpuVisibility,
+        camera: &CpuCamera,
+        draws: &[Draw<'_>],
+    ) -> Result<(), RenderError> {
+        if visibility.renderer_id != self.id {
+            return Err(RenderError::ForeignResource {
+                draw: 0,
+                what: "visibility map",
+            });
+        }
+        let (width, height) = (visibility.width, visibility.height);
+        let clip_from_world = camera_clip_from_world(camera, width, height)?;
+        for (i, d) in draws.iter().enumerate() {
+            self.validate_draw(i, d)?;
+        }
+        let light = lighting_uniforms(None)?;
+        let device = &self.ctx.device;
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let bind_groups: Vec<wgpu::BindGroup> = draws
+            .iter()
+            .map(|d| {
+                let uniforms =
+                    Self::draw_uniforms(d, &clip_from_world, &camera.camera_from_world, &light);
+                self.draw_bind_group(&uniforms, d.joint_matrices, d.morph_weights)
+            })
+            .collect();
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("pa-render visibility"),
+        });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("pa-render visibility pass"),
+                color_attachments: &[Some(color_attachment(
+                    &visibility.camera_z_view,
+                    wgpu::Color::TRANSPARENT,
+                ))],
+                depth_stencil_attachment: Some(depth_attachment(&visibility.depth_view)),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines.visibility);
+            for (d, bind_group) in draws.iter().zip(&bind_groups) {
+                let texture = d.texture.unwrap_or(&self.white_texture);
+                pass.set_bind_group(0, &d.mesh.bind_group, &[]);
+                pass.set_bind_group(1, bind_group, &[]);
+                pass.set_bind_group(2, &texture.bind_group, &[]);
+                pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
+            }
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        self.pop_scope(validation, "visibility map")?;
+        visibility.camera = *camera;
+        Ok(())
+    }
+
+    /// Group 3 bind group of a draw of [`Renderer::render_live`].
+    fn live_bind_group(
+        &self,
+        d: &Draw<'_>,
+        live: Option<&LiveTexturing<'_>>,
+    ) -> Result<wgpu::BindGroup, RenderError> {
+        let device = &self.ctx.device;
+        let mut u = LiveUniforms::zeroed();
+        let (frame_view, visibility_view) = match live {
+            None => (&self.white_texture.view, &self.empty_visibility_view),
+            Some(l) => {
+                let (fw, fh) = l.frame.size();
+                let k = &l.frame_camera.intrinsics;
+                let k = if (k.width, k.height) == (fw, fh) {
+                    *k
+                } else {
+                    k.scaled_to(fw, fh)
+                };
+                let dist = &l.frame_camera.distortion;
+                u.key_world_from_mesh = mat(&l.key_world_from_mesh);
+                u.frame_camera_from_world = mat(&l.frame_camera.camera_from_world);
+                u.visibility_from_frame_camera = mat(&Mat4::IDENTITY);
+                u.frame_intrinsics = [k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32];
+                u.frame_size = [fw as f32, fh as f32, 0.0, 0.0];
+                u.distortion = [
+                    dist.k1 as f32,
+                    dist.k2 as f32,
+                    dist.p1 as f32,
+                    dist.p2 as f32,
+                ];
+                u.distortion_k3_tolerances = [
+                    dist.k3 as f32,
+                    l.min_facing_cos,
+                    l.depth_tolerance_rel,
+                    l.depth_tolerance_m,
+                ];
+                u.fallback_gain = [
+                    l.fallback_gain_rgb[0],
+                    l.fallback_gain_rgb[1],
+                    l.fallback_gain_rgb[2],
+                    0.0,
+                ];
+                u.key_counts = [
+                    d.joint_matrices.len() as u32,
+                    l.key_joint_matrices.len() as u32,
+                    d.morph_weights.len() as u32,
+                    l.key_morph_weights.len() as u32,
+                ];
+                u.flags = [1, 0, 0, 0];
+                let visibility_view = match l.visibility {
+                    None => &self.empty_visibility_view,
+                    Some(v) => {
+                        let kv = &v.camera.intrinsics;
+                        let kv = if (kv.width, kv.height) == (v.width, v.height) {
+                            *kv
+                        } else {
+                            kv.scaled_to(v.width, v.height)
+                        };
+                        let vis_from_frame =
+                            if v.camera.camera_from_world == l.frame_camera.camera_from_world {
+                                Mat4::IDENTITY
+                            } else {
+                                (v.camera.camera_from_world.as_dmat4()
+                                    * l.frame_camera.camera_from_world.as_dmat4().inverse())
+                                .as_mat4()
+                            };
+                        if !finite_mat(&vis_from_frame) {
+                            return Err(RenderError::InvalidCamera(
+                                "frame camera pose is not invertible".to_owned(),
+                            ));
+                        }
+                        u.visibility_from_frame_camera = mat(&vis_from_frame);
+                        u.visibility_intrinsics =
+                            [kv.fx as f32, kv.fy as f32, kv.cx as f32, kv.cy as f32];
+                        u.visibility_size = [v.width as f32, v.height as f32, 0.0, 0.0];
+                        u.flags[1] = 1;
+                        &v.camera_z_view
+                    }
+                };
+                (&l.frame.view, visibility_view)
+            }
+        };
+        let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pa-render live uniforms"),
+            contents: bytemuck::bytes_of(&u),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        Ok(device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("pa-render live bind group"),
+            layout: &self.pipelines.live_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(frame_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&self.pipelines.frame_sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(visibility_view),
+                },
+            ],
+        }))
+    }
+
+    /// Like [`Renderer::render`], with live texturing: every [`LiveDraw`] with a
+    /// [`LiveTexturing`] block takes its colours from the camera frame at the projection of
+    /// the same surface point in the key pose (unlit), or its fallback colour where that
+    /// sample is invalid; draws without one shade as in `render` (`lighting` applies to them
+    /// only). Also reads back the per-pixel [`crate::LiveSample`] codes. See the `live` module
+    /// docs for the math and the visibility test.
+    pub fn render_live(
+        &mut self,
+        camera: &CpuCamera,
+        lighting: Option<&Lighting>,
+        draws: &[LiveDraw<'_>],
+        clear_rgba: [f32; 4],
+        width: u32,
+        height: u32,
+    ) -> Result<LiveRenderedFrame, RenderError> {
+        self.check_render_size(width, height)?;
+        if self.ctx.limits.max_color_attachments < 3 {
+            return Err(RenderError::UnsupportedAdapter {
+                details: format!(
+                    "{} has {} colour attachments; live texturing needs 3",
+                    self.adapter_info(),
+                    self.ctx.limits.max_color_attachments
+                ),
+            });
+        }
+        let clip_from_world = camera_clip_from_world(camera, width, height)?;
+        let light = lighting_uniforms(lighting)?;
+        let clear = Self::clear_color(clear_rgba)?;
+        for (i, ld) in draws.iter().enumerate() {
+            self.validate_draw(i, &ld.draw)?;
+            if let Some(l) = &ld.live {
+                self.validate_live(i, &ld.draw, l)?;
+            }
+        }
+
+        let device = &self.ctx.device;
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let targets = match self.live_targets.take() {
+            Some(t) if t.base.width == width && t.base.height == height => t,
+            _ => LiveTargets::new(device, width, height),
+        };
+
+        let mut bind_groups = Vec::with_capacity(draws.len());
+        for ld in draws {
+            let d = &ld.draw;
+            let uniforms =
+                Self::draw_uniforms(d, &clip_from_world, &camera.camera_from_world, &light);
+            let (key_joints, key_weights) = match &ld.live {
+                Some(l) => (l.key_joint_matrices, l.key_morph_weights),
+                None => (&[][..], &[][..]),
+            };
+            let group1 = self.draw_bind_group_with_key(
+                &uniforms,
+                d.joint_matrices,
+                d.morph_weights,
+                key_joints,
+                key_weights,
+            );
+            let group3 = self.live_bind_group(d, ld.live.as_ref())?;
+            bind_groups.push((group1, group3));
+        }
+
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("pa-render live frame"),
+        });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("pa-render live pass"),
+                color_attachments: &[
+                    Some(color_attachment(&targets.base.color_view, clear)),
+                    Some(color_attachment(
+                        &targets.base.camera_z_view,
+                        wgpu::Color::TRANSPARENT,
+                    )),
+                    Some(color_attachment(
+                        &targets.code_view,
+                        wgpu::Color::TRANSPARENT,
+                    )),
+                ],
+                depth_stencil_attachment: Some(depth_attachment(&targets.base.depth_view)),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipelines.live);
+            for (ld, (group1, group3)) in draws.iter().zip(&bind_groups) {
+                let d = &ld.draw;
+                let texture = d.texture.unwrap_or(&self.white_texture);
+                pass.set_bind_group(0, &d.mesh.bind_group, &[]);
+                pass.set_bind_group(1, group1, &[]);
+                pass.set_bind_group(2, &texture.bind_group, &[]);
+                pass.set_bind_group(3, group3, &[]);
+                pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
+            }
+        }
+        targets.record_copies(&mut encoder);
+        self.ctx.queue.submit([encoder.finish()]);
+
+        let oom = pollster::block_on(oom.pop());
+        let validation = pollster::block_on(validation.pop());
+        if let Some(e) = validation.or(oom) {
+            return Err(RenderError::Gpu {
+                during: "live render",
+                message: e.to_string(),
+            });
+        }
+
+        let frame = read_frame(device, &targets.base)?;
+        let codes = readback::read_buffers(device, &[&targets.code_readback])?;
+        let padded = readback::padded_bytes_per_row_of(width, 1) as usize;
+        let live_valid = codes
+            .first()
+            .map(|c| readback::unpad_rows(c, width as usize, padded, height as usize))
+            .unwrap_or_default();
+        self.live_targets = Some(targets);
+        Ok(LiveRenderedFrame { frame, live_valid })
     }
 
     /// Skinned (and morphed) world positions of every vertex of `mesh`, computed on the GPU by
@@ -667,6 +1151,69 @@ impl Renderer {
         }
         Ok(SkinnedVertices { positions, normals })
     }
+}
+
+fn color_attachment(
+    view: &wgpu::TextureView,
+    clear: wgpu::Color,
+) -> wgpu::RenderPassColorAttachment<'_> {
+    wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load: wgpu::LoadOp::Clear(clear),
+            store: wgpu::StoreOp::Store,
+        },
+    }
+}
+
+fn depth_attachment(view: &wgpu::TextureView) -> wgpu::RenderPassDepthStencilAttachment<'_> {
+    wgpu::RenderPassDepthStencilAttachment {
+        view,
+        depth_ops: Some(wgpu::Operations {
+            load: wgpu::LoadOp::Clear(1.0),
+            store: wgpu::StoreOp::Discard,
+        }),
+        stencil_ops: None,
+    }
+}
+
+/// Maps the colour and camera-z readback buffers of `targets` (copies already submitted).
+fn read_frame(device: &wgpu::Device, targets: &Targets) -> Result<RenderedFrame, RenderError> {
+    let (width, height) = (targets.width, targets.height);
+    let data = readback::read_buffers(
+        device,
+        &[&targets.color_readback, &targets.camera_z_readback],
+    );
+    let (color, camera_z) = match data.as_deref() {
+        Ok([color, camera_z]) => (color, camera_z),
+        _ => {
+            return Err(data.err().unwrap_or_else(|| {
+                RenderError::Readback("unexpected readback buffer count".to_owned())
+            }));
+        }
+    };
+    let row = width as usize * 4;
+    let padded_row = readback::padded_bytes_per_row(width) as usize;
+    let rgba8 = readback::unpad_rows(color, row, padded_row, height as usize);
+    let depth_m = readback::unpad_rows(camera_z, row, padded_row, height as usize)
+        .chunks_exact(4)
+        .map(|b| {
+            let z = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+            if z > 0.0 && z.is_finite() {
+                z
+            } else {
+                f32::INFINITY
+            }
+        })
+        .collect();
+    Ok(RenderedFrame {
+        width,
+        height,
+        rgba8,
+        depth_m,
+    })
 }
 
 /// clip_from_world for a render of `width` x `height`, after validating the camera.

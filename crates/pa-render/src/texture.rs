@@ -11,12 +11,17 @@ pub struct CpuTexture {
     pub rgba8: Vec<u8>,
 }
 
-/// A texture uploaded by [`crate::Renderer::upload_texture`]. Cheap to clone.
+/// A texture uploaded by [`crate::Renderer::upload_texture`] (with mips) or
+/// [`crate::Renderer::upload_frame`] (without). Cheap to clone (clones share the GPU texture,
+/// so [`crate::Renderer::update_texture`] changes what every clone sees).
 #[derive(Debug, Clone)]
 pub struct GpuTexture {
     pub(crate) renderer_id: u64,
     pub(crate) width: u32,
     pub(crate) height: u32,
+    pub(crate) texture: wgpu::Texture,
+    /// View of all mip levels.
+    pub(crate) view: wgpu::TextureView,
     /// Group 2 of the render pipeline: texture view and sampler.
     pub(crate) bind_group: wgpu::BindGroup,
 }
@@ -25,6 +30,11 @@ impl GpuTexture {
     /// Size of mip level 0.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// Number of mip levels (1 for camera frames).
+    pub fn mip_level_count(&self) -> u32 {
+        self.texture.mip_level_count()
     }
 }
 
@@ -109,38 +119,17 @@ fn downsample(width: u32, height: u32, rgba8: &[u8], lut: &[f32; 256]) -> (u32, 
     (w2, h2, out)
 }
 
-pub(crate) fn upload(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    max_side: u32,
-    layout: &wgpu::BindGroupLayout,
-    sampler: &wgpu::Sampler,
-    renderer_id: u64,
-    texture: &CpuTexture,
-) -> Result<GpuTexture, RenderError> {
-    texture.validate(max_side)?;
-    let mip_level_count = 32 - texture.width.max(texture.height).leading_zeros();
-    let gpu = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("pa-render base colour texture"),
-        size: wgpu::Extent3d {
-            width: texture.width,
-            height: texture.height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+/// Writes `texture` into mip level 0 of `gpu` and, when `gpu` has more levels, the CPU-built
+/// mip chain (2x2 box filter in linear light) into the others.
+pub(crate) fn write_levels(queue: &wgpu::Queue, gpu: &wgpu::Texture, texture: &CpuTexture) {
+    let mip_level_count = gpu.mip_level_count();
     let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
     let (mut w, mut h) = (texture.width, texture.height);
     let mut level_data = std::borrow::Cow::Borrowed(texture.rgba8.as_slice());
     for level in 0..mip_level_count {
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: &gpu,
+                texture: gpu,
                 mip_level: level,
                 origin: wgpu::Origin3d::ZERO,
                 aspect: wgpu::TextureAspect::All,
@@ -163,6 +152,46 @@ pub(crate) fn upload(
             level_data = std::borrow::Cow::Owned(data);
         }
     }
+}
+
+/// Uploads `texture` as sRGB RGBA8, with a full CPU-built mip chain when `mips`, else a single
+/// level (camera frames: sampled at level 0 only).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn upload(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    max_side: u32,
+    layout: &wgpu::BindGroupLayout,
+    sampler: &wgpu::Sampler,
+    renderer_id: u64,
+    texture: &CpuTexture,
+    mips: bool,
+) -> Result<GpuTexture, RenderError> {
+    texture.validate(max_side)?;
+    let mip_level_count = if mips {
+        32 - texture.width.max(texture.height).leading_zeros()
+    } else {
+        1
+    };
+    let gpu = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(if mips {
+            "pa-render base colour texture"
+        } else {
+            "pa-render camera frame texture"
+        }),
+        size: wgpu::Extent3d {
+            width: texture.width,
+            height: texture.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    write_levels(queue, &gpu, texture);
     let view = gpu.create_view(&wgpu::TextureViewDescriptor::default());
     let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("pa-render texture bind group"),
@@ -182,6 +211,8 @@ pub(crate) fn upload(
         renderer_id,
         width: texture.width,
         height: texture.height,
+        texture: gpu,
+        view,
         bind_group,
     })
 }

@@ -31,6 +31,10 @@ enum Command {
     Render(cmd::render::Args),
     /// Write the model posed at one animation time as OBJ, STL or GLB (for 3D printing).
     Export(cmd::export::Args),
+    /// Write a printable AprilTag marker or board: SVG at true size and PNG at a given DPI.
+    Marker(cmd::marker::Args),
+    /// Detect and track the marker in an image or a folder of images; one JSON line a frame.
+    Track(cmd::track::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -40,6 +44,8 @@ fn main() -> std::process::ExitCode {
         Command::Inspect(args) => cmd::inspect::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Export(args) => cmd::export::run(args),
+        Command::Marker(args) => cmd::marker::run(args),
+        Command::Track(args) => cmd::track::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

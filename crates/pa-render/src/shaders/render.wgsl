@@ -50,3 +50,10 @@ fn fs_main(in: VsOut, @builtin(front_facing) front_facing: bool) -> FsOut {
     out.camera_z_bits = vec4<u32>(bitcast<u32>(in.camera_z), 0u, 0u, 1u);
     return out;
 }
+
+// Visibility pass (`Renderer::render_visibility`): only the camera-space z, as f32 bits, into
+// the single R32Uint target that live texturing reads back with `textureLoad`.
+@fragment
+fn fs_visibility(in: VsOut) -> @location(0) vec4<u32> {
+    return vec4<u32>(bitcast<u32>(in.camera_z), 0u, 0u, 1u);
+}

@@ -1,8 +1,9 @@
 // Shared skinning and morph-target code of pa-render.
 //
-// This file is prepended to both `render.wgsl` (vertex stage) and `skin_compute.wgsl`
-// (compute entry point used by `Renderer::skin_gpu`), so that the two evaluate exactly the same
-// function `skin_vertex`. Keep the Rust-side layouts in `pipeline.rs` / `mesh.rs` in sync.
+// This file is prepended to `render.wgsl` and `live.wgsl` (vertex stage) and to
+// `skin_compute.wgsl` (compute entry point used by `Renderer::skin_gpu`), so that all of them
+// evaluate exactly the same function `skin_vertex`. Keep the Rust-side layouts in `pipeline.rs`
+// / `mesh.rs` in sync.
 
 // One mesh vertex, as packed by `mesh.rs` (80 bytes).
 struct GpuVertex {
@@ -56,15 +57,30 @@ fn joint_index(joints: vec4<u32>, k: u32) -> u32 {
 // Morph targets (base + sum_k w_k delta_k), then linear blend skinning
 // (sum_i w_i M_i p, no renormalisation of the weights) or the rigid world_from_mesh.
 // Normals use the cofactor matrix (the inverse transpose up to a positive scale) and are
-// normalised.
+// normalised. This is the draw's own pose (`draw` uniforms, joints and weights from index 0).
 fn skin_vertex(vid: u32) -> SkinnedVertex {
+    return skin_vertex_pose(vid, 0u, draw.counts.x, 0u, draw.counts.y, draw.world_from_mesh);
+}
+
+// The same deformation for an arbitrary pose of the same mesh: joint matrices
+// `joint_matrices[joint_base .. joint_base + joint_count]` (0 joints: rigid with `m`), morph
+// weights `morph_weights[morph_base .. morph_base + morph_count]` (one per target, or none).
+// Live texturing evaluates the key pose with it (key joints appended after the draw's own).
+fn skin_vertex_pose(
+    vid: u32,
+    joint_base: u32,
+    joint_count: u32,
+    morph_base: u32,
+    morph_count: u32,
+    m: mat4x4<f32>,
+) -> SkinnedVertex {
     let v = vertices[vid];
     var p = v.position_u.xyz;
     var n = v.normal_v.xyz;
 
     let vertex_count = draw.counts.z;
-    for (var k = 0u; k < draw.counts.y; k++) {
-        let w = morph_weights[k];
+    for (var k = 0u; k < morph_count; k++) {
+        let w = morph_weights[morph_base + k];
         if (w != 0.0) {
             let base = (k * vertex_count + vid) * 2u;
             p += w * morph_deltas[base].xyz;
@@ -72,8 +88,6 @@ fn skin_vertex(vid: u32) -> SkinnedVertex {
         }
     }
 
-    let m = draw.world_from_mesh;
-    let joint_count = draw.counts.x;
     if (joint_count > 0u) {
         let last = joint_count - 1u;
         var acc_p = vec3<f32>(0.0);
@@ -81,13 +95,13 @@ fn skin_vertex(vid: u32) -> SkinnedVertex {
         for (var i = 0u; i < 4u; i++) {
             let wa = v.weights0[i];
             if (wa != 0.0) {
-                let ma = joint_matrices[min(joint_index(v.joints, i), last)];
+                let ma = joint_matrices[joint_base + min(joint_index(v.joints, i), last)];
                 acc_p += wa * (ma * vec4<f32>(p, 1.0)).xyz;
                 acc_m += mat3x3<f32>(wa * ma[0].xyz, wa * ma[1].xyz, wa * ma[2].xyz);
             }
             let wb = v.weights1[i];
             if (wb != 0.0) {
-                let mb = joint_matrices[min(joint_index(v.joints, i + 4u), last)];
+                let mb = joint_matrices[joint_base + min(joint_index(v.joints, i + 4u), last)];
                 acc_p += wb * (mb * vec4<f32>(p, 1.0)).xyz;
                 acc_m += mat3x3<f32>(wb * mb[0].xyz, wb * mb[1].xyz, wb * mb[2].xyz);
             }

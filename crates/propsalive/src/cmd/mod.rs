@@ -3,7 +3,9 @@
 pub mod demo;
 pub mod export;
 pub mod inspect;
+pub mod marker;
 pub mod render;
+pub mod track;
 
 use std::path::Path;
 

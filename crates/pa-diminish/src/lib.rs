@@ -1,0 +1,202 @@
+//! Diminished reality for Props Alive: hide the real prop where the animated twin no longer
+//! covers it, by replacing it with (an estimate of) the background.
+//!
+//! # Data
+//! Frames are [`ImageRgba8`] (sRGB, row-major, no padding); fills write R, G, B and keep
+//! alpha. The region to fill is a [`Mask`] (`0` = keep, non-zero = fill; this crate writes
+//! `0`/`255`), typically the key-pose silhouette from the renderer's depth
+//! ([`mask_from_depth`]) dilated by a few pixels ([`dilate`]) to cover anti-aliasing, shadows
+//! at the contact and tracking jitter. Functions write into caller-owned buffers; the
+//! [`Diminisher`] keeps its scratch buffers between frames so a steady-state fill allocates
+//! nothing. Every fill only reads boundary pixels that are inside the image, so masks that
+//! touch the border work.
+//!
+//! # Methods ([`FillMethod`]) and their cost (N x M = the mask's bounding box)
+//! * [`FillMethod::PaperRectangle`] - the paper's baseline (sections 3.3 and 4.3): the whole
+//!   screen-space rectangle, each pixel the mean of the 4 pixels just outside it on its row
+//!   and column (sides outside the image are dropped). O(N x M), the cheapest; exact for a
+//!   constant background, blurry cross-shaped streaks on texture, and it also overwrites the
+//!   background that was visible inside the rectangle. See [`rect_fill`].
+//! * [`FillMethod::Rays`] - tight-mask fill by inverse-distance interpolation of the nearest
+//!   known pixel along 8 or 16 rays; reproduces linear ramps exactly; O(N x M x rays) with one
+//!   raster pass a direction. See [`ray_fill`].
+//! * [`FillMethod::CleanPlate`] - the background seen without the prop, warped into the
+//!   current view by the table-plane homography, bilinearly sampled and gain-matched on a ring
+//!   around the mask; correct texture, not just a smooth guess. Pixels the plate does not
+//!   cover fall back to the ray fill. O(N x M) samples + O(ring). See [`plate`].
+//!
+//! Run `cargo run --release -p pa-diminish --example fill_timing` for the timings.
+
+pub mod error;
+pub mod mask;
+pub mod metrics;
+pub mod plate;
+pub mod ray_fill;
+pub mod rect_fill;
+pub mod types;
+
+pub use error::DiminishError;
+pub use mask::{dilate, dilate_in_bbox, dilate_in_place, mask_from_depth, DilateShape};
+pub use metrics::{mse_rgb, psnr_rgb};
+pub use plate::{CleanPlate, GainEstimate, GainModel, GainSpace, Homography};
+pub use ray_fill::RayDirections;
+pub use rect_fill::{baseline_rect, paper_rectangle_fill};
+pub use types::{ImageRgba8, Mask, Rect};
+
+use types::ensure_same_size;
+
+/// How to fill the masked region.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FillMethod<'a> {
+    /// The paper's baseline over a rectangle: the given one (clipped to the frame; the mask
+    /// is then not used), or the bounding box of the mask.
+    PaperRectangle { rect: Option<Rect> },
+    /// Inverse-distance ray fill over the mask only.
+    Rays(RayDirections),
+    /// Clean plate warped by a homography, gain-matched, with a ray-fill fallback.
+    CleanPlate(CleanPlate<'a>),
+}
+
+impl Default for FillMethod<'_> {
+    fn default() -> Self {
+        FillMethod::Rays(RayDirections::default())
+    }
+}
+
+/// What a fill did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FillStats {
+    /// Pixels written.
+    pub filled: usize,
+    /// The region worked on: the rectangle for the baseline, the mask's bounding box otherwise;
+    /// `None` when nothing was to be done.
+    pub bbox: Option<Rect>,
+    /// Pixels taken from the clean plate.
+    pub from_plate: usize,
+    /// Pixels interpolated by the ray fill (all of them for `Rays`, the fallback for
+    /// `CleanPlate`).
+    pub interpolated: usize,
+    /// The photometric correction used by `CleanPlate`.
+    pub gain: Option<GainEstimate>,
+}
+
+/// A fill engine that keeps its scratch buffers between frames.
+#[derive(Debug, Default, Clone)]
+pub struct Diminisher {
+    to_fill: Vec<u8>,
+    rays: ray_fill::RayScratch,
+    plate: plate::PlateScratch,
+}
+
+impl Diminisher {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Fills the set pixels of `mask` in `frame` (in place). An empty mask is a no-op.
+    /// Finds the mask's bounding box with one scan of the mask (O(frame) byte compares); use
+    /// [`Diminisher::fill_in_bbox`] when the box is known.
+    pub fn fill(
+        &mut self,
+        frame: &mut ImageRgba8,
+        mask: &Mask,
+        method: &FillMethod<'_>,
+    ) -> Result<FillStats, DiminishError> {
+        ensure_same_size("mask", frame.size(), mask.size())?;
+        if let FillMethod::PaperRectangle { rect: Some(r) } = method {
+            return self.fill_in_bbox(frame, mask, *r, method);
+        }
+        match mask.bounding_box() {
+            None => Ok(FillStats::default()),
+            Some(bbox) => self.fill_in_bbox(frame, mask, bbox, method),
+        }
+    }
+
+    /// Like [`Diminisher::fill`], but only mask pixels inside `bbox` are considered (it is
+    /// tightened to the set pixels inside it). All work is O(bbox area).
+    pub fn fill_in_bbox(
+        &mut self,
+        frame: &mut ImageRgba8,
+        mask: &Mask,
+        bbox: Rect,
+        method: &FillMethod<'_>,
+    ) -> Result<FillStats, DiminishError> {
+        ensure_same_size("mask", frame.size(), mask.size())?;
+        let (w, h) = frame.size();
+        if let FillMethod::PaperRectangle { rect: Some(r) } = method {
+            let filled = paper_rectangle_fill(frame, *r)?;
+            return Ok(FillStats {
+                filled,
+                bbox: r.clip(w, h),
+                ..FillStats::default()
+            });
+        }
+        let Some(bbox) = mask.bounding_box_in(bbox) else {
+            return Ok(FillStats::default());
+        };
+        match method {
+            FillMethod::PaperRectangle { .. } => {
+                let filled = paper_rectangle_fill(frame, bbox)?;
+                Ok(FillStats {
+                    filled,
+                    bbox: Some(bbox),
+                    ..FillStats::default()
+                })
+            }
+            FillMethod::Rays(dirs) => {
+                mask::extract_into(mask, bbox, &mut self.to_fill);
+                let n = ray_fill::ray_fill_region(
+                    frame,
+                    bbox,
+                    &mut self.to_fill,
+                    *dirs,
+                    &mut self.rays,
+                )?;
+                Ok(FillStats {
+                    filled: n,
+                    bbox: Some(bbox),
+                    interpolated: n,
+                    ..FillStats::default()
+                })
+            }
+            FillMethod::CleanPlate(cp) => {
+                mask::extract_into(mask, bbox, &mut self.to_fill);
+                let (from_plate, gain) = plate::plate_fill_region(
+                    frame,
+                    mask,
+                    bbox,
+                    &mut self.to_fill,
+                    cp,
+                    &mut self.plate,
+                )?;
+                let interpolated = if self.to_fill.iter().any(|&v| v != 0) {
+                    ray_fill::ray_fill_region(
+                        frame,
+                        bbox,
+                        &mut self.to_fill,
+                        cp.fallback,
+                        &mut self.rays,
+                    )?
+                } else {
+                    0
+                };
+                Ok(FillStats {
+                    filled: from_plate + interpolated,
+                    bbox: Some(bbox),
+                    from_plate,
+                    interpolated,
+                    gain: Some(gain),
+                })
+            }
+        }
+    }
+}
+
+/// One-shot fill with fresh scratch buffers; see [`Diminisher::fill`].
+pub fn fill(
+    frame: &mut ImageRgba8,
+    mask: &Mask,
+    method: &FillMethod<'_>,
+) -> Result<FillStats, DiminishError> {
+    Diminisher::new().fill(frame, mask, method)
+}

@@ -1,0 +1,230 @@
+//! Ray fill: inverse-distance interpolation of the nearest known pixel along 8 or 16 rays.
+//!
+//! For every pixel `p` to fill and every direction `u` (8: the axes and diagonals; 16: plus the
+//! knight moves `(2, 1)`, `(1, 2)`, ...), walk `p - k u` for `k = 1, 2, ...` to the first
+//! known pixel `q_u` (not in the mask, inside the image) at distance `d_u = k |u|`, and set
+//!
+//! ```text
+//! out(p) = sum_u c(q_u) / d_u  /  sum_u 1 / d_u
+//! ```
+//!
+//! Weights `1/d` make each pair of opposite rays a linear interpolation between its two hits,
+//! so a linear colour ramp is reproduced exactly wherever both rays of every pair land in the
+//! image (only the u8 rounding remains). Rays that leave the image contribute nothing, so masks
+//! touching the border work; pixels that no ray reaches in one round are filled in a second
+//! round from the pixels just filled.
+//!
+//! The walk is never done per pixel: for each direction one raster pass over the mask's
+//! bounding box (in an order where `p - u` is visited before `p`) propagates the step count
+//! `k(p) = k(p - u) + 1`. Cost: O(bbox area x directions), one gather and a few flops per
+//! pixel and direction; no allocation once the scratch buffers have grown.
+
+use crate::error::DiminishError;
+use crate::types::{ImageRgba8, Rect};
+
+/// How many ray directions [`crate::FillMethod::Rays`] uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RayDirections {
+    /// Axes and diagonals: half the cost of `Sixteen`; the default.
+    #[default]
+    Eight,
+    /// Axes, diagonals and the eight knight moves: smoother (fewer star-shaped artefacts),
+    /// about +0.45 dB on the textured test, twice the cost.
+    Sixteen,
+}
+
+impl RayDirections {
+    pub(crate) fn vectors(self) -> &'static [(i32, i32)] {
+        const D16: [(i32, i32); 16] = [
+            (1, 0),
+            (-1, 0),
+            (0, 1),
+            (0, -1),
+            (1, 1),
+            (-1, -1),
+            (1, -1),
+            (-1, 1),
+            (2, 1),
+            (-2, -1),
+            (1, 2),
+            (-1, -2),
+            (-1, 2),
+            (1, -2),
+            (-2, 1),
+            (2, -1),
+        ];
+        match self {
+            RayDirections::Eight => &D16[..8],
+            RayDirections::Sixteen => &D16,
+        }
+    }
+}
+
+/// Reusable buffers of the ray fill.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct RayScratch {
+    steps: Vec<u32>,
+    acc: Vec<[f32; 4]>,
+    /// Per local row, the first and last pixel to fill (`first > last`: none).
+    spans: Vec<(usize, usize)>,
+    /// `recip[k] = 1 / k`.
+    recip: Vec<f32>,
+}
+
+const NONE: u32 = u32::MAX;
+
+/// Fills the pixels of `frame` inside `region` whose entry in `to_fill` (local, row-major,
+/// `region.width * region.height`, non-zero = fill) is set, and clears those entries.
+/// Everything else in the frame counts as known. Returns the number of pixels filled.
+pub(crate) fn ray_fill_region(
+    frame: &mut ImageRgba8,
+    region: Rect,
+    to_fill: &mut [u8],
+    dirs: RayDirections,
+    scratch: &mut RayScratch,
+) -> Result<usize, DiminishError> {
+    let (fw, fh) = frame.size();
+    let rw = region.width as usize;
+    let rh = region.height as usize;
+    debug_assert_eq!(to_fill.len(), rw * rh);
+    let mut remaining = to_fill.iter().filter(|&&v| v != 0).count();
+    let mut filled = 0usize;
+    scratch.steps.clear();
+    scratch.steps.resize(rw * rh, NONE);
+    // Steps never exceed the region's larger side plus the 2-pixel reach outside it.
+    let max_k = rw.max(rh) + 3;
+    if scratch.recip.len() < max_k {
+        scratch.recip = (0..max_k).map(|k| 1.0 / (k.max(1) as f32)).collect();
+    }
+    while remaining > 0 {
+        scratch.acc.clear();
+        scratch.acc.resize(rw * rh, [0.0; 4]);
+        scratch.spans.clear();
+        scratch.spans.extend(to_fill.chunks_exact(rw).map(|row| {
+            match row.iter().position(|&v| v != 0) {
+                Some(first) => (first, row.iter().rposition(|&v| v != 0).unwrap_or(first)),
+                None => (1, 0),
+            }
+        }));
+        for &d in dirs.vectors() {
+            accumulate_direction(frame, region, to_fill, d, scratch);
+        }
+        let stride = fw as usize * 4;
+        let data = frame.as_mut_slice();
+        let mut this_round = 0usize;
+        for ly in 0..rh {
+            let row = (region.y as usize + ly) * stride + region.x as usize * 4;
+            for lx in 0..rw {
+                let li = ly * rw + lx;
+                let a = scratch.acc[li];
+                if to_fill[li] != 0 && a[3] > 0.0 {
+                    let inv = 1.0 / a[3];
+                    let p = row + lx * 4;
+                    for ch in 0..3 {
+                        data[p + ch] = (a[ch] * inv + 0.5).clamp(0.0, 255.0) as u8;
+                    }
+                    to_fill[li] = 0;
+                    this_round += 1;
+                }
+            }
+        }
+        if this_round == 0 {
+            return Err(DiminishError::NoBoundary {
+                region,
+                width: fw,
+                height: fh,
+            });
+        }
+        filled += this_round;
+        remaining -= this_round;
+    }
+    Ok(filled)
+}
+
+fn accumulate_direction(
+    frame: &ImageRgba8,
+    region: Rect,
+    to_fill: &[u8],
+    (dx, dy): (i32, i32),
+    scratch: &mut RayScratch,
+) {
+    let (fw, fh) = (frame.width() as isize, frame.height() as isize);
+    let rw = region.width as usize;
+    let rh = region.height as usize;
+    let (rx, ry) = (region.x as isize, region.y as isize);
+    let inv_norm = 1.0 / ((dx * dx + dy * dy) as f32).sqrt();
+    let data = frame.as_slice();
+    let stride = fw as usize * 4;
+    let (dx, dy) = (dx as isize, dy as isize);
+    let RayScratch {
+        steps,
+        acc,
+        spans,
+        recip,
+    } = scratch;
+
+    // Visit order: p - u must come before p.
+    for i in 0..rh {
+        let ly = if dy < 0 { rh - 1 - i } else { i };
+        let (first, last) = spans[ly];
+        if first > last {
+            continue;
+        }
+        let gy = ry + ly as isize;
+        let py = gy - dy;
+        let prev_row_in_image = py >= 0 && py < fh;
+        let ply = py - ry;
+        let prev_row_in_region = ply >= 0 && (ply as usize) < rh;
+        let prev_row = if prev_row_in_region {
+            ply as usize * rw
+        } else {
+            0
+        };
+        let row = ly * rw;
+        let mut visit = |lx: usize| {
+            let li = row + lx;
+            if to_fill[li] == 0 {
+                return;
+            }
+            let gx = rx + lx as isize;
+            let px = gx - dx;
+            let k = if !prev_row_in_image || px < 0 || px >= fw {
+                NONE
+            } else {
+                let plx = lx as isize - dx;
+                if prev_row_in_region && plx >= 0 && (plx as usize) < rw {
+                    let pli = prev_row + plx as usize;
+                    if to_fill[pli] != 0 {
+                        steps[pli].saturating_add(1)
+                    } else {
+                        1
+                    }
+                } else {
+                    1
+                }
+            };
+            steps[li] = k;
+            if k != NONE {
+                let ki = k as isize;
+                let hx = (gx - ki * dx) as usize;
+                let hy = (gy - ki * dy) as usize;
+                let p = hy * stride + hx * 4;
+                let wgt = inv_norm * recip.get(k as usize).copied().unwrap_or(1.0 / k as f32);
+                let a = &mut acc[li];
+                a[0] += wgt * f32::from(data[p]);
+                a[1] += wgt * f32::from(data[p + 1]);
+                a[2] += wgt * f32::from(data[p + 2]);
+                a[3] += wgt;
+            }
+        };
+        if dy == 0 && dx < 0 {
+            for lx in (first..=last).rev() {
+                visit(lx);
+            }
+        } else {
+            for lx in first..=last {
+                visit(lx);
+            }
+        }
+    }
+}

@@ -1,0 +1,234 @@
+// Live-texturing pipeline of pa-render (`Renderer::render_live`); `skinning.wgsl` is
+// prepended by the Rust side. See `src/live.rs` for the math; keep `LiveUniforms` in sync with
+// the Rust struct of the same name.
+//
+// Draws without live texturing (live.flags.x == 0) shade exactly like `render.wgsl`.
+
+@group(2) @binding(0) var base_color_texture: texture_2d<f32>;
+@group(2) @binding(1) var base_color_sampler: sampler;
+
+// Per-draw live-texturing uniforms (336 bytes).
+struct LiveUniforms {
+    key_world_from_mesh: mat4x4<f32>,
+    // The camera that took the frame (OpenCV axes).
+    frame_camera_from_world: mat4x4<f32>,
+    // Visibility-map camera from frame camera (identity when they are the same camera).
+    visibility_from_frame_camera: mat4x4<f32>,
+    // fx, fy, cx, cy of the frame camera, rescaled to the frame texture size.
+    frame_intrinsics: vec4<f32>,
+    // x, y: frame texture width and height in pixels.
+    frame_size: vec4<f32>,
+    // k1, k2, p1, p2.
+    distortion: vec4<f32>,
+    // x: k3, y: min facing cosine, z: relative depth tolerance, w: absolute depth tolerance (m).
+    distortion_k3_tolerances: vec4<f32>,
+    // fx, fy, cx, cy of the visibility-map camera, rescaled to the map size.
+    visibility_intrinsics: vec4<f32>,
+    // x, y: visibility map width and height in pixels.
+    visibility_size: vec4<f32>,
+    // rgb: linear gain applied to the model's own albedo where no live sample is valid.
+    fallback_gain: vec4<f32>,
+    // x: key joint base, y: key joint count, z: key morph base, w: key morph count.
+    key_counts: vec4<u32>,
+    // x: 1 = live-textured draw, y: 1 = a visibility map is bound.
+    flags: vec4<u32>,
+}
+
+@group(3) @binding(0) var<uniform> live: LiveUniforms;
+@group(3) @binding(1) var frame_texture: texture_2d<f32>;
+@group(3) @binding(2) var frame_sampler: sampler;
+// Camera-space z (f32 bits, 0 = empty) of the key pose seen by the visibility camera.
+@group(3) @binding(3) var visibility_z: texture_2d<u32>;
+
+// Codes of the validity target (`LiveSample` on the Rust side).
+const LIVE_NONE: u32 = 0u;
+const LIVE_OUTSIDE: u32 = 1u;
+const LIVE_BACK_FACING: u32 = 2u;
+const LIVE_OCCLUDED: u32 = 3u;
+const LIVE_VALID: u32 = 255u;
+
+struct LiveVsOut {
+    @builtin(position) clip_position: vec4<f32>,
+    @location(0) normal_world: vec3<f32>,
+    @location(1) uv: vec2<f32>,
+    @location(2) camera_z: f32,
+    // Key-pose position and normal in the frame camera's coordinates. Default (perspective-
+    // correct) interpolation: the fragment gets the key-pose point with the same barycentric
+    // coordinates on the key-pose triangle as the fragment has on the animated triangle.
+    @location(3) key_camera: vec3<f32>,
+    @location(4) key_normal_camera: vec3<f32>,
+}
+
+@vertex
+fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
+    let skinned = skin_vertex(vid);
+    let v = vertices[vid];
+    let world = vec4<f32>(skinned.position_world, 1.0);
+    var out: LiveVsOut;
+    out.clip_position = draw.clip_from_world * world;
+    out.normal_world = skinned.normal_world;
+    out.uv = vec2<f32>(v.position_u.w, v.normal_v.w);
+    out.camera_z = (draw.camera_from_world * world).z;
+    out.key_camera = vec3<f32>(0.0);
+    out.key_normal_camera = vec3<f32>(0.0, 0.0, -1.0);
+    if (live.flags.x == 1u) {
+        let key = skin_vertex_pose(
+            vid,
+            live.key_counts.x,
+            live.key_counts.y,
+            live.key_counts.z,
+            live.key_counts.w,
+            live.key_world_from_mesh,
+        );
+        let c = live.frame_camera_from_world;
+        out.key_camera = (c * vec4<f32>(key.position_world, 1.0)).xyz;
+        out.key_normal_camera = transform_normal(
+            mat3x3<f32>(c[0].xyz, c[1].xyz, c[2].xyz),
+            key.normal_world,
+        );
+    }
+    return out;
+}
+
+// OpenCV radial-tangential distortion of a normalised image point (pa_camera::Distortion).
+fn distort(n: vec2<f32>) -> vec2<f32> {
+    let k1 = live.distortion.x;
+    let k2 = live.distortion.y;
+    let p1 = live.distortion.z;
+    let p2 = live.distortion.w;
+    let k3 = live.distortion_k3_tolerances.x;
+    let x = n.x;
+    let y = n.y;
+    let r2 = x * x + y * y;
+    let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    let xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+    let yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+    return vec2<f32>(xd, yd);
+}
+
+// d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)] > 0: beyond the first radius where the radial
+// polynomial folds back, points far outside the view would land inside the image.
+fn radial_monotonic(r2: f32) -> bool {
+    let k1 = live.distortion.x;
+    let k2 = live.distortion.y;
+    let k3 = live.distortion_k3_tolerances.x;
+    return 1.0 + r2 * (3.0 * k1 + r2 * (5.0 * k2 + r2 * 7.0 * k3)) > 0.0;
+}
+
+// 1/z of the visibility map at integer texel (x, y) (clamped to the map), 0 where empty.
+fn visibility_inv_z(x: i32, y: i32) -> f32 {
+    let size = vec2<i32>(live.visibility_size.xy);
+    let t = clamp(vec2<i32>(x, y), vec2<i32>(0), size - vec2<i32>(1));
+    let z = bitcast<f32>(textureLoad(visibility_z, t, 0).x);
+    return select(0.0, 1.0 / z, z > 0.0);
+}
+
+// Validity of the key-pose point `pc` (frame camera coordinates) with normal `nc`, and the
+// frame pixel (OpenCV convention) it projects to.
+struct LiveLookup {
+    code: u32,
+    pixel: vec2<f32>,
+}
+
+fn live_lookup(pc: vec3<f32>, nc: vec3<f32>) -> LiveLookup {
+    var out: LiveLookup;
+    out.code = LIVE_OUTSIDE;
+    out.pixel = vec2<f32>(0.0);
+    // 1. In front of the frame camera, inside the valid distortion range and the image.
+    if (!(pc.z > 1e-6)) {
+        return out;
+    }
+    let n = pc.xy / pc.z;
+    if (!radial_monotonic(dot(n, n))) {
+        return out;
+    }
+    let d = distort(n);
+    let k = live.frame_intrinsics;
+    let pixel = vec2<f32>(k.x * d.x + k.z, k.y * d.y + k.w);
+    out.pixel = pixel;
+    let size = live.frame_size.xy;
+    if (any(pixel < vec2<f32>(-0.5)) || any(pixel > size - vec2<f32>(0.5))) {
+        return out;
+    }
+    // 2. Facing the frame camera: n . (point - eye) / |point - eye| < -min_facing_cos.
+    let min_facing_cos = live.distortion_k3_tolerances.y;
+    let len2 = dot(nc, nc);
+    if (!(len2 > 0.0) || dot(nc, pc) * inverseSqrt(len2 * dot(pc, pc)) > -min_facing_cos) {
+        out.code = LIVE_BACK_FACING;
+        return out;
+    }
+    // 3. Not occluded: compare with the visibility map (pinhole projection, since the map is
+    // rasterised without distortion), 1/z bilinearly interpolated from the 4 nearest texels.
+    if (live.flags.y == 1u) {
+        let pv = (live.visibility_from_frame_camera * vec4<f32>(pc, 1.0)).xyz;
+        if (!(pv.z > 1e-6)) {
+            return out;
+        }
+        let kv = live.visibility_intrinsics;
+        let q = vec2<f32>(kv.x * pv.x / pv.z + kv.z, kv.y * pv.y / pv.z + kv.w);
+        let vsize = live.visibility_size.xy;
+        if (any(q < vec2<f32>(-0.5)) || any(q > vsize - vec2<f32>(0.5))) {
+            return out;
+        }
+        let q0 = floor(q);
+        let f = q - q0;
+        let x0 = i32(q0.x);
+        let y0 = i32(q0.y);
+        let top = mix(visibility_inv_z(x0, y0), visibility_inv_z(x0 + 1, y0), f.x);
+        let bottom = mix(visibility_inv_z(x0, y0 + 1), visibility_inv_z(x0 + 1, y0 + 1), f.x);
+        let inv_z = mix(top, bottom, f.y);
+        // Visible when z <= z_map (1 + rel) + abs, i.e. z / z_map <= 1 + rel + abs / z_map;
+        // an empty map (inv_z = 0) never occludes.
+        let rel = live.distortion_k3_tolerances.z;
+        let abs_m = live.distortion_k3_tolerances.w;
+        if (pv.z * inv_z > 1.0 + rel + abs_m * inv_z) {
+            out.code = LIVE_OCCLUDED;
+            return out;
+        }
+    }
+    out.code = LIVE_VALID;
+    return out;
+}
+
+struct LiveFsOut {
+    // Linear colour; the Rgba8UnormSrgb target encodes it to sRGB.
+    @location(0) color: vec4<f32>,
+    // Camera-space z in metres, as f32 bits (as in `render.wgsl`).
+    @location(1) camera_z_bits: vec4<u32>,
+    // LIVE_* code (R8Uint target).
+    @location(2) live_code: vec4<u32>,
+}
+
+@fragment
+fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOut {
+    // Sampled in uniform control flow (implicit derivatives for the mip level).
+    let albedo = draw.base_color_factor
+        * textureSample(base_color_texture, base_color_sampler, in.uv);
+    var rgb = albedo.rgb;
+    var code = LIVE_NONE;
+    if (live.flags.x == 1u) {
+        // Unlit: a live sample already carries the real lighting, and the fallback gain is the
+        // caller's colour match of the albedo to the frame.
+        let lookup = live_lookup(in.key_camera, in.key_normal_camera);
+        code = lookup.code;
+        if (code == LIVE_VALID) {
+            let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
+            rgb = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
+        } else {
+            rgb = albedo.rgb * live.fallback_gain.rgb;
+        }
+    } else if (draw.counts.w == 1u) {
+        var n = normalize(in.normal_world);
+        // Double-sided lighting: the back side of a triangle uses the flipped normal.
+        if (front_facing == (draw.flags.x == 1u)) {
+            n = -n;
+        }
+        let n_dot_l = max(dot(n, draw.toward_light_world.xyz), 0.0);
+        rgb = albedo.rgb * (draw.ambient_rgb.rgb + n_dot_l * draw.light_rgb.rgb);
+    }
+    var out: LiveFsOut;
+    out.color = vec4<f32>(rgb, albedo.a);
+    out.camera_z_bits = vec4<u32>(bitcast<u32>(in.camera_z), 0u, 0u, 1u);
+    out.live_code = vec4<u32>(code, 0u, 0u, 1u);
+    return out;
+}

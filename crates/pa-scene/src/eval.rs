@@ -1,0 +1,207 @@
+//! Measuring the AR output against ground truth on generated scenes.
+//!
+//! For every camera frame the generator renders the physical key prop (input) and the
+//! in-between as if printed (ground truth). The frame pipeline runs on the input through the
+//! real tracker; its output is compared with the ground truth:
+//!
+//! - **prop region**: pixels where the ground-truth in-between prop is (PSNR, SSIM);
+//! - **revealed region**: pixels where the key prop stood in the input but the in-between
+//!   does not (the background the diminishing must invent);
+//! - **pose error**: the tracked `camera_from_marker` against the true one;
+//! - **distance from the key pose**: the head's rotation (degrees) and displacement (prop
+//!   heights) between the in-between and the key pose present, for the degradation curve.
+
+use glam::{Mat4, Quat};
+use pa_camera::CameraModel;
+use pa_model::anim;
+use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, StageTimings};
+use pa_pipeline::metrics::{psnr_region, ssim_region};
+use pa_render::Renderer;
+use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+
+use crate::prop::JOINT_HEAD;
+use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
+
+/// Metrics of one frame.
+#[derive(Debug, Clone, Default)]
+pub struct FrameMetrics {
+    pub frame: u32,
+    pub key: usize,
+    /// Head rotation between the in-between and the key pose, degrees.
+    pub key_distance_deg: f64,
+    /// Head displacement between the in-between and the key pose, in prop heights.
+    pub key_distance_props: f64,
+    pub psnr_prop: Option<f64>,
+    pub ssim_prop: Option<f64>,
+    pub psnr_revealed: Option<f64>,
+    pub ssim_revealed: Option<f64>,
+    /// Tracking: rotation error (degrees) and translation error (mm); None when lost.
+    pub rot_err_deg: Option<f64>,
+    pub trans_err_mm: Option<f64>,
+    pub tracked: bool,
+    pub timings: StageTimings,
+}
+
+/// The head joint's world transform at `time_s`.
+fn head_world(scene: &Scene, time_s: f32) -> Mat4 {
+    let pose = anim::sample(&scene.model, 0, time_s);
+    let world = pose.world_from_node(&scene.model);
+    let head_node = scene.model.skins[0].joints[JOINT_HEAD];
+    world[head_node]
+}
+
+/// (rotation degrees, displacement in prop heights) of the head between two times.
+pub fn key_distance(scene: &Scene, time_s: f32, key_time_s: f32) -> (f64, f64) {
+    let a = head_world(scene, time_s);
+    let b = head_world(scene, key_time_s);
+    let (_, ra, ta) = a.to_scale_rotation_translation();
+    let (_, rb, tb) = b.to_scale_rotation_translation();
+    let rel: Quat = ra * rb.inverse();
+    let angle = 2.0 * rel.w.abs().clamp(-1.0, 1.0).acos() as f64;
+    (
+        angle.to_degrees(),
+        ((ta - tb).length() / scene.spec.prop.height_m) as f64,
+    )
+}
+
+/// Rotation (degrees) and translation (mm) error between two `camera_from_marker` poses.
+pub fn pose_error(estimated: Mat4, truth: Mat4) -> (f64, f64) {
+    let (_, re, te) = estimated.to_scale_rotation_translation();
+    let (_, rt, tt) = truth.to_scale_rotation_translation();
+    let rel = re * rt.inverse();
+    let angle = 2.0 * (rel.w.abs().min(1.0) as f64).acos();
+    (angle.to_degrees(), ((te - tt).length() * 1000.0) as f64)
+}
+
+/// Compares one pipeline output with the frame's ground truth.
+pub fn measure(
+    scene: &Scene,
+    renderer: &mut Renderer,
+    frame: &SceneFrame,
+    out: &ArFrame,
+) -> Result<FrameMetrics, String> {
+    let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
+    let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
+    let truth_mask = scene
+        .prop_mask(renderer, frame.camera_from_marker, frame.time_s)
+        .map_err(|e| e.to_string())?;
+    let key_mask = scene
+        .prop_mask(renderer, frame.camera_from_marker, key_time)
+        .map_err(|e| e.to_string())?;
+    let revealed: Vec<bool> = key_mask
+        .iter()
+        .zip(&truth_mask)
+        .map(|(&k, &t)| k && !t)
+        .collect();
+    let gt = &frame.ground_truth.rgba8;
+    let (dist_deg, dist_props) = key_distance(scene, frame.time_s, key_time);
+    let (rot_err_deg, trans_err_mm) = match out.camera_from_marker {
+        Some(p) => {
+            let (r, t) = pose_error(p, frame.camera_from_marker);
+            (Some(r), Some(t))
+        }
+        None => (None, None),
+    };
+    Ok(FrameMetrics {
+        frame: frame.index,
+        key: frame.key,
+        key_distance_deg: dist_deg,
+        key_distance_props: dist_props,
+        psnr_prop: psnr_region(&out.rgba8, gt, &truth_mask),
+        ssim_prop: ssim_region(&out.rgba8, gt, w, h, &truth_mask),
+        psnr_revealed: psnr_region(&out.rgba8, gt, &revealed),
+        ssim_revealed: ssim_region(&out.rgba8, gt, w, h, &revealed),
+        rot_err_deg,
+        trans_err_mm,
+        tracked: out.camera_from_marker.is_some(),
+        timings: out.timings,
+    })
+}
+
+/// Builds the frame pipeline for a scene: the real tracker on the scene's board.
+pub fn pipeline_for(
+    scene: &Scene,
+    renderer: &mut Renderer,
+    settings: ArSettings,
+) -> Result<ArPipeline, String> {
+    let camera = CameraModel::pinhole(scene.intrinsics);
+    let tracker = Tracker::new(
+        camera,
+        TrackTarget::Board(scene.board.clone()),
+        DetectorConfig::default(),
+        TrackerConfig::default(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut p = ArPipeline::new(
+        renderer,
+        scene.model.clone(),
+        0,
+        camera,
+        marker_from_prop(),
+        Some(tracker),
+        settings,
+    )
+    .map_err(|e| e.to_string())?;
+    let (plate, plate_pose) = scene.clean_plate(renderer).map_err(|e| e.to_string())?;
+    let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)
+        .map_err(|e| e.to_string())?;
+    p.set_clean_plate(plate, plate_pose);
+    Ok(p)
+}
+
+/// Runs `settings` over the frames `frames` of a scene built from `spec`; `each` sees every
+/// (frame, output, metrics).
+pub fn run_scene(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), String>,
+) -> Result<Vec<FrameMetrics>, String> {
+    let scene = Scene::new(spec, renderer)?;
+    let mut pipeline = pipeline_for(&scene, renderer, settings)?;
+    let mut all = Vec::new();
+    for i in frames {
+        let f = scene.frame(renderer, i).map_err(|e| e.to_string())?;
+        let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
+        let out = pipeline
+            .process(
+                renderer,
+                &f.input.rgba8,
+                f.input.width,
+                f.input.height,
+                f.time_s,
+                key_time,
+                i as f64 / scene.spec.fps as f64,
+            )
+            .map_err(|e| e.to_string())?;
+        let m = measure(&scene, renderer, &f, &out)?;
+        each(&f, &out, &m)?;
+        all.push(m);
+    }
+    Ok(all)
+}
+
+/// Mean of the finite values.
+pub fn mean(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
+    let v: Vec<f64> = values
+        .into_iter()
+        .flatten()
+        .filter(|x| x.is_finite())
+        .collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// Median of the values.
+pub fn median(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
+    let mut v: Vec<f64> = values
+        .into_iter()
+        .flatten()
+        .filter(|x| x.is_finite())
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}

@@ -1,0 +1,488 @@
+//! The synthetic set: the built-in prop standing on an AprilTag board on a textured table, lit
+//! by a directional light plus ambient (Lambertian), seen by a moving handheld-like camera with
+//! known intrinsics. For every camera frame it renders:
+//!
+//! - the **input**: the physical key prop (the model at its key pose) on the board;
+//! - the **ground truth**: the same view with the prop at the in-between pose, as if that pose
+//!   had been printed and shot (what the paper's authors wanted and never had);
+//! - the **clean plate** (once): the set without the prop, from a reference view.
+//!
+//! World space is the marker (board) frame of `pa-track`: origin at the board centre, +X right,
+//! +Y down the printed page, +Z into the table, metres. The prop stands at the origin with
+//! `marker_from_prop` (prop +Y up -> marker -Z, prop front +Z -> marker +Y).
+
+use glam::{DVec2, Mat3, Mat4, Vec3};
+use pa_camera::{camera_from_world_look_at, Intrinsics};
+use pa_model::{anim, Model};
+use pa_pipeline::GpuTwin;
+use pa_render::{
+    CpuCamera, CpuMesh, CpuTexture, DirectionalLight, Draw, GpuMesh, GpuTexture, Lighting,
+    RenderError, RenderedFrame, Renderer,
+};
+use pa_track::board::BoardTag;
+use pa_track::{Board, TagFamily};
+
+use crate::prop::{prop_model, PropSpec};
+
+/// Table surface texture.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Background {
+    /// Wood grain with knots: a textured background where boundary-average fills fail.
+    Wood,
+    /// A nearly uniform grey cloth: the paper's "solid colours" case.
+    Plain,
+}
+
+/// How the camera moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraPath {
+    /// A slow arc with handheld jitter.
+    Handheld,
+    /// A tripod: the same view every frame.
+    Static,
+}
+
+/// What to generate.
+#[derive(Debug, Clone)]
+pub struct SceneSpec {
+    pub seed: u64,
+    pub width: u32,
+    pub height: u32,
+    pub fov_y_deg: f64,
+    /// Camera frames to generate.
+    pub frames: u32,
+    /// Animation frames per second (camera frame i shows animation frame i).
+    pub fps: f32,
+    /// Animation frames that exist as physical key props (at least one).
+    pub key_frames: Vec<u32>,
+    pub background: Background,
+    pub camera_path: CameraPath,
+    pub prop: PropSpec,
+}
+
+impl Default for SceneSpec {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            width: 960,
+            height: 540,
+            fov_y_deg: 45.0,
+            frames: 49,
+            fps: 24.0,
+            key_frames: vec![0],
+            background: Background::Wood,
+            camera_path: CameraPath::Handheld,
+            prop: PropSpec::default(),
+        }
+    }
+}
+
+/// The board of the set: eight 45 mm tag36h11 tags (ids 0..8) in a ring around the prop.
+pub fn set_board() -> Board {
+    let pitch = 0.085;
+    let mut tags = Vec::new();
+    let mut id = 0;
+    for r in -1..=1 {
+        for c in -1..=1 {
+            if r == 0 && c == 0 {
+                continue;
+            }
+            tags.push(BoardTag {
+                id,
+                center_m: DVec2::new(c as f64 * pitch, r as f64 * pitch),
+                size_m: 0.045,
+                rotation_rad: 0.0,
+            });
+            id += 1;
+        }
+    }
+    Board {
+        family: TagFamily::Tag36h11,
+        tags,
+    }
+}
+
+/// Side of the printed board sheet, metres.
+pub const BOARD_SHEET_M: f32 = 0.26;
+
+/// The prop's placement on the marker: prop +Y (up) -> marker -Z, prop +Z (front) -> marker +Y.
+pub fn marker_from_prop() -> Mat4 {
+    Mat4::from_mat3(Mat3::from_cols(Vec3::X, Vec3::NEG_Z, Vec3::Y))
+}
+
+/// The key light and ambient of the set (world = marker frame; -Z is up).
+pub fn set_lighting() -> Lighting {
+    Lighting {
+        ambient_rgb: [0.38, 0.38, 0.4],
+        directional: Some(DirectionalLight {
+            toward_light_world: Vec3::new(-0.5, 0.6, -1.0),
+            radiance_rgb: [0.72, 0.7, 0.66],
+        }),
+    }
+}
+
+/// Deterministic pseudo-random numbers (SplitMix64).
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed ^ 0x9e37_79b9_7f4a_7c15)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+fn value_noise(x: f32, y: f32, seed: u32) -> f32 {
+    let h = |xi: i32, yi: i32| {
+        let mut v = (xi as u32)
+            .wrapping_mul(0x8da6_b343)
+            .wrapping_add((yi as u32).wrapping_mul(0xd816_3841))
+            .wrapping_add(seed.wrapping_mul(0xcb1a_b31f));
+        v ^= v >> 13;
+        v = v.wrapping_mul(0x5bd1_e995);
+        v ^= v >> 15;
+        (v & 0xff_ffff) as f32 / 16_777_216.0
+    };
+    let (xi, yi) = (x.floor() as i32, y.floor() as i32);
+    let (fx, fy) = (x - x.floor(), y - y.floor());
+    let s = |v: f32| v * v * (3.0 - 2.0 * v);
+    let (sx, sy) = (s(fx), s(fy));
+    let (a, b, c, d) = (h(xi, yi), h(xi + 1, yi), h(xi, yi + 1), h(xi + 1, yi + 1));
+    a + (b - a) * sx + (c - a) * sy + (a - b - c + d) * sx * sy
+}
+
+/// The table texture (sRGB RGBA8), `px` square, covering `TABLE_M` metres.
+pub fn table_texture(background: Background, px: u32, seed: u32) -> CpuTexture {
+    let mut rgba8 = Vec::with_capacity((px * px * 4) as usize);
+    for y in 0..px {
+        for x in 0..px {
+            let u = x as f32 / px as f32;
+            let v = y as f32 / px as f32;
+            let c = match background {
+                Background::Wood => {
+                    let warp = value_noise(u * 6.0, v * 1.5, seed) * 3.0;
+                    let rings = (v * 90.0 + warp * 6.0 + value_noise(u * 30.0, v * 4.0, seed + 1))
+                        .sin()
+                        * 0.5
+                        + 0.5;
+                    let fine = value_noise(u * 400.0, v * 20.0, seed + 2);
+                    let t = 0.55 + 0.3 * rings + 0.15 * fine;
+                    Vec3::new(0.55, 0.36, 0.2) * t
+                }
+                Background::Plain => {
+                    Vec3::splat(0.55 + 0.03 * value_noise(u * 50.0, v * 50.0, seed))
+                }
+            };
+            let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            rgba8.extend_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
+        }
+    }
+    CpuTexture {
+        width: px,
+        height: px,
+        rgba8,
+    }
+}
+
+/// Side of the table quad, metres.
+pub const TABLE_M: f32 = 1.6;
+
+/// The printed board sheet: white paper with the board's tags, `px` square over
+/// [`BOARD_SHEET_M`].
+pub fn board_texture(board: &Board, px: u32) -> Result<CpuTexture, String> {
+    let mut cells = Vec::new();
+    for t in &board.tags {
+        let c = pa_track::marker_cells(board.family, t.id).map_err(|e| e.to_string())?;
+        cells.push(c);
+    }
+    let layout = pa_track::family_layout(board.family).map_err(|e| e.to_string())?;
+    let scale = layout.total_cells as f64 / layout.border_cells as f64;
+    let mut rgba8 = Vec::with_capacity((px * px * 4) as usize);
+    for y in 0..px {
+        for x in 0..px {
+            let mx = ((x as f64 + 0.5) / px as f64 - 0.5) * BOARD_SHEET_M as f64;
+            let my = ((y as f64 + 0.5) / px as f64 - 0.5) * BOARD_SHEET_M as f64;
+            let mut v = 245u8;
+            for (t, c) in board.tags.iter().zip(&cells) {
+                let half = t.size_m * scale * 0.5;
+                let (dx, dy) = (mx - t.center_m.x + half, my - t.center_m.y + half);
+                if dx >= 0.0 && dy >= 0.0 && dx < 2.0 * half && dy < 2.0 * half {
+                    let n = c.width as f64;
+                    let cx = ((dx / (2.0 * half)) * n) as usize;
+                    let cy = ((dy / (2.0 * half)) * n) as usize;
+                    v = if c.data[cy * c.width as usize + cx] > 127 {
+                        245
+                    } else {
+                        18
+                    };
+                }
+            }
+            rgba8.extend_from_slice(&[v, v, v, 255]);
+        }
+    }
+    Ok(CpuTexture {
+        width: px,
+        height: px,
+        rgba8,
+    })
+}
+
+fn quad(half_w: f32, half_h: f32, z: f32) -> CpuMesh {
+    CpuMesh {
+        positions: vec![
+            [-half_w, -half_h, z],
+            [half_w, -half_h, z],
+            [half_w, half_h, z],
+            [-half_w, half_h, z],
+        ],
+        normals: vec![[0.0, 0.0, -1.0]; 4],
+        uvs: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        indices: vec![0, 1, 2, 0, 2, 3],
+        ..Default::default()
+    }
+}
+
+/// One generated camera frame.
+pub struct SceneFrame {
+    pub index: u32,
+    /// Animation time shown by this frame (seconds).
+    pub time_s: f32,
+    /// The key pose physically present (index into `SceneSpec::key_frames`).
+    pub key: usize,
+    /// True camera pose.
+    pub camera_from_marker: Mat4,
+    /// The camera image: the key prop on the set.
+    pub input: RenderedFrame,
+    /// The in-between pose as if printed and shot.
+    pub ground_truth: RenderedFrame,
+}
+
+/// The generator, holding uploaded set pieces and the prop.
+pub struct Scene {
+    pub spec: SceneSpec,
+    pub model: Model,
+    pub intrinsics: Intrinsics,
+    pub board: Board,
+    twin: GpuTwin,
+    table: (GpuMesh, GpuTexture),
+    sheet: (GpuMesh, GpuTexture),
+    path: Vec<Mat4>,
+}
+
+/// Clip planes of the set's cameras.
+pub const NEAR_M: f32 = 0.05;
+pub const FAR_M: f32 = 5.0;
+
+impl Scene {
+    /// Builds the set and uploads it to `renderer`.
+    pub fn new(spec: SceneSpec, renderer: &mut Renderer) -> Result<Self, String> {
+        if spec.key_frames.is_empty() {
+            return Err("a scene needs at least one key pose".into());
+        }
+        let model = prop_model(&spec.prop)?;
+        let intrinsics =
+            Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)
+                .map_err(|e| e.to_string())?;
+        let board = set_board();
+        let err = |e: RenderError| e.to_string();
+        let twin = GpuTwin::upload(renderer, &model).map_err(err)?;
+        let table_mesh = renderer
+            .upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005))
+            .map_err(err)?;
+        let table_tex = renderer
+            .upload_texture(&table_texture(spec.background, 2048, spec.seed as u32))
+            .map_err(err)?;
+        let sheet_mesh = renderer
+            .upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0))
+            .map_err(err)?;
+        let sheet_tex = renderer
+            .upload_texture(&board_texture(&board, 2080)?)
+            .map_err(err)?;
+        let path = camera_path(&spec);
+        Ok(Self {
+            spec,
+            model,
+            intrinsics,
+            board,
+            twin,
+            table: (table_mesh, table_tex),
+            sheet: (sheet_mesh, sheet_tex),
+            path,
+        })
+    }
+
+    /// The animation time of camera frame `i`.
+    pub fn time_s(&self, i: u32) -> f32 {
+        i as f32 / self.spec.fps
+    }
+
+    /// The key pose present for animation frame `i`: the nearest key frame.
+    pub fn key_for(&self, i: u32) -> usize {
+        self.spec
+            .key_frames
+            .iter()
+            .enumerate()
+            .min_by_key(|(_, &k)| (k as i64 - i as i64).abs())
+            .map(|(n, _)| n)
+            .unwrap_or(0)
+    }
+
+    /// True `camera_from_marker` of frame `i`.
+    pub fn camera_from_marker(&self, i: u32) -> Mat4 {
+        self.path[(i as usize).min(self.path.len().saturating_sub(1))]
+    }
+
+    fn render(
+        &self,
+        renderer: &mut Renderer,
+        camera_from_marker: Mat4,
+        prop_time_s: Option<f32>,
+    ) -> Result<RenderedFrame, RenderError> {
+        let camera = CpuCamera {
+            intrinsics: self.intrinsics,
+            camera_from_world: camera_from_marker,
+            near_m: NEAR_M,
+            far_m: FAR_M,
+        };
+        let mut table = Draw::new(&self.table.0, Mat4::IDENTITY);
+        table.texture = Some(&self.table.1);
+        let mut sheet = Draw::new(&self.sheet.0, Mat4::IDENTITY);
+        sheet.texture = Some(&self.sheet.1);
+        let frame;
+        let mut draws = vec![table, sheet];
+        if let Some(t) = prop_time_s {
+            let pose = anim::sample(&self.model, 0, t);
+            frame = self.twin.frame(&self.model, &pose, marker_from_prop());
+            draws.extend(self.twin.draws(&frame));
+        }
+        renderer.render(
+            &camera,
+            Some(&set_lighting()),
+            &draws,
+            [0.1, 0.1, 0.12, 1.0],
+            self.spec.width,
+            self.spec.height,
+        )
+    }
+
+    /// Renders camera frame `i`: input (key prop) and ground truth (in-between).
+    pub fn frame(&self, renderer: &mut Renderer, i: u32) -> Result<SceneFrame, RenderError> {
+        let key = self.key_for(i);
+        let key_time = self.spec.key_frames[key] as f32 / self.spec.fps;
+        let time_s = self.time_s(i);
+        let camera_from_marker = self.camera_from_marker(i);
+        let input = self.render(renderer, camera_from_marker, Some(key_time))?;
+        let ground_truth = self.render(renderer, camera_from_marker, Some(time_s))?;
+        Ok(SceneFrame {
+            index: i,
+            time_s,
+            key,
+            camera_from_marker,
+            input,
+            ground_truth,
+        })
+    }
+
+    /// The clean plate: the set without the prop, from the first frame's view. Returns the
+    /// image and its `camera_from_marker`.
+    pub fn clean_plate(
+        &self,
+        renderer: &mut Renderer,
+    ) -> Result<(RenderedFrame, Mat4), RenderError> {
+        let view = self.camera_from_marker(0);
+        Ok((self.render(renderer, view, None)?, view))
+    }
+
+    /// Pixels covered by the prop alone at `prop_time_s`, seen from `camera_from_marker`.
+    pub fn prop_mask(
+        &self,
+        renderer: &mut Renderer,
+        camera_from_marker: Mat4,
+        prop_time_s: f32,
+    ) -> Result<Vec<bool>, RenderError> {
+        let camera = CpuCamera {
+            intrinsics: self.intrinsics,
+            camera_from_world: camera_from_marker,
+            near_m: NEAR_M,
+            far_m: FAR_M,
+        };
+        let pose = anim::sample(&self.model, 0, prop_time_s);
+        let frame = self.twin.frame(&self.model, &pose, marker_from_prop());
+        let r = renderer.render(
+            &camera,
+            None,
+            &self.twin.draws(&frame),
+            [0.0; 4],
+            self.spec.width,
+            self.spec.height,
+        )?;
+        Ok(r.depth_m.iter().map(|d| d.is_finite()).collect())
+    }
+
+    /// The set with the prop at an arbitrary animation time from an arbitrary view (for
+    /// tests and the degradation study).
+    pub fn render_view(
+        &self,
+        renderer: &mut Renderer,
+        camera_from_marker: Mat4,
+        prop_time_s: Option<f32>,
+    ) -> Result<RenderedFrame, RenderError> {
+        self.render(renderer, camera_from_marker, prop_time_s)
+    }
+}
+
+/// The camera path: an arc in front of the prop with handheld jitter (or a fixed view).
+fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
+    let mut rng = Rng::new(spec.seed);
+    // Smooth jitter: a sum of a few random sinusoids per axis.
+    let waves: Vec<(f32, f32, f32)> = (0..9)
+        .map(|_| {
+            (
+                0.3 + rng.f32() * 1.7,
+                rng.f32() * std::f32::consts::TAU,
+                0.5 + rng.f32(),
+            )
+        })
+        .collect();
+    let target = Vec3::new(0.0, 0.0, -0.1);
+    (0..spec.frames.max(1))
+        .map(|i| {
+            let u = if spec.frames > 1 {
+                i as f32 / (spec.frames - 1) as f32
+            } else {
+                0.0
+            };
+            let (azimuth_deg, elevation_deg, distance_m, jitter) = match spec.camera_path {
+                CameraPath::Handheld => (-18.0 + 36.0 * u, 28.0 + 6.0 * u, 0.55 - 0.05 * u, 1.0),
+                CameraPath::Static => (0.0, 30.0, 0.55, 0.0),
+            };
+            let t = i as f32 / 24.0;
+            let j = |k: usize| {
+                let (f, p, a) = waves[k];
+                a * (f * std::f32::consts::TAU * t + p).sin() * jitter
+            };
+            let az = (azimuth_deg + 1.5 * j(0)).to_radians();
+            let el = (elevation_deg + 1.0 * j(1)).to_radians();
+            let d = distance_m + 0.01 * j(2);
+            // The prop faces +Y (marker); up is -Z.
+            let eye = Vec3::new(
+                d * el.cos() * az.sin(),
+                d * el.cos() * az.cos(),
+                -d * el.sin(),
+            );
+            let look = target + Vec3::new(0.004 * j(3), 0.004 * j(4), 0.004 * j(5));
+            let up = Vec3::new(0.03 * j(6), 0.0, -1.0).normalize();
+            camera_from_world_look_at(eye, look, up).unwrap_or(Mat4::IDENTITY)
+        })
+        .collect()
+}

@@ -1,0 +1,662 @@
+//! `propsalive track INPUT --calib FILE --tag-size-m S [...]`: marker detection, camera pose
+//! and the tracking state machine over an image or a folder of images (natural sort), one
+//! JSON line per frame (stdout, or `--out-log FILE.jsonl`), optionally drawing each frame
+//! with its detections and the marker axes (`--draw DIR`).
+//!
+//! Per-frame JSON: `frame` (index), `file`, `width`, `height`, `state` (`searching`,
+//! `detected`, `tracked`, `lost`), `events`, `detections` (`family`, `id`, `corners_px` as
+//! `[[x, y] x4]` TL, TR, BR, BL of the printed tag, OpenCV pixel centres, `hamming`,
+//! `decision_margin`), `pose` (the tracker's filtered `camera_from_marker`, present while
+//! `tracked`: `rotation_xyzw` unit quaternion, `translation_m`, plus `reprojection_rms_px` of
+//! this frame's measurement), `measured_pose` (this frame's unfiltered pose, whenever the
+//! target was seen), `used_ids`, `coasting`, `used_roi`, `time_ms` (detection + pose).
+//!
+//! Decisions:
+//! - A single image is one frame of a fresh track, so the state machine needs one sighting to
+//!   report `tracked` (`frames_to_track = 1`); folders use the tracker's defaults.
+//! - A file in a folder that has an image extension but cannot be decoded is **skipped**: a
+//!   warning names it on stderr, its JSON line has `"error"` and no detections, and the
+//!   tracker treats it as a frame without the marker. A single unreadable image, or a folder
+//!   where no image decodes, is an error.
+//! - Resolution: the calibration's size is compared with the first frame's. Same aspect ratio
+//!   (within 0.5 %): the intrinsics are scaled ([`pa_camera::Intrinsics::scaled_to`]) and a
+//!   note says so on stderr. Otherwise the command refuses. Every frame must have the first
+//!   frame's size.
+//! - Video files are recognised by extension and refused with a message (no decoder yet).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use glam::{DVec2, DVec3};
+use indicatif::{ProgressBar, ProgressStyle};
+use pa_camera::{CameraModel, Intrinsics};
+use pa_track::{
+    Board, Detection, DetectorConfig, Pose, TagFamily, TrackEvent, TrackOutput, TrackState,
+    TrackTarget, Tracker, TrackerConfig,
+};
+use serde_json::{json, Value};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// An image (.png, .jpg, .tif) or a folder of images (processed in natural order).
+    pub input: PathBuf,
+    /// Camera calibration: OpenCV YAML (.yaml/.yml), or pa-camera TOML/JSON.
+    #[arg(long, conflicts_with = "fov_deg")]
+    pub calib: Option<PathBuf>,
+    /// Without a calibration: an ideal pinhole camera with this vertical field of view.
+    #[arg(long)]
+    pub fov_deg: Option<f64>,
+    /// Side of the tag's black border square in metres.
+    #[arg(long)]
+    pub tag_size_m: f64,
+    /// Tag family.
+    #[arg(long, default_value = "tag36h11")]
+    pub family: String,
+    /// Id of the tracked tag (single-tag target).
+    #[arg(long, default_value_t = 0, conflicts_with = "board")]
+    pub id: u32,
+    /// Track a board of ROWSxCOLS tags (as `propsalive marker --board` prints it).
+    #[arg(long)]
+    pub board: Option<String>,
+    /// Gap between the black squares of neighbouring board tags, metres.
+    #[arg(long, requires = "board")]
+    pub gap_m: Option<f64>,
+    /// Id of the board's top-left tag.
+    #[arg(long, default_value_t = 0, requires = "board")]
+    pub first_id: u32,
+    /// Frame rate of the sequence (for the pose filter's time base).
+    #[arg(long, default_value_t = 24.0)]
+    pub fps: f64,
+    /// Thorough detection: an extra pass on a 2x upsampled image finds small, strongly tilted
+    /// tags (slower).
+    #[arg(long)]
+    pub thorough: bool,
+    /// Write the JSON lines here instead of stdout.
+    #[arg(long)]
+    pub out_log: Option<PathBuf>,
+    /// Write each frame with detected corners and marker axes drawn, as DIR/<name>.png.
+    #[arg(long)]
+    pub draw: Option<PathBuf>,
+    /// Replace output files that exist.
+    #[arg(long)]
+    pub force: bool,
+}
+
+const VIDEO_EXTS: &[&str] = &[
+    "mp4", "mov", "avi", "mkv", "webm", "m4v", "mpg", "mpeg", "wmv", "flv", "mts", "m2ts", "3gp",
+];
+const IMAGE_EXTS: &[&str] = &["png", "jpg", "jpeg", "tif", "tiff"];
+
+fn has_ext(p: &Path, exts: &[&str]) -> bool {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
+}
+
+/// Natural order: digit runs compare by value ("f2" < "f10"), the rest case-insensitively.
+pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    let (mut a, mut b) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (a.first(), b.first()) {
+            (None, None) => return Ordering::Equal,
+            (None, _) => return Ordering::Less,
+            (_, None) => return Ordering::Greater,
+            (Some(x), Some(y)) if x.is_ascii_digit() && y.is_ascii_digit() => {
+                let na = a.iter().take_while(|c| c.is_ascii_digit()).count();
+                let nb = b.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (da, db) = (&a[..na], &b[..nb]);
+                let ta: &[u8] = {
+                    let z = da.iter().take_while(|c| **c == b'0').count();
+                    &da[z.min(na.saturating_sub(1))..]
+                };
+                let tb: &[u8] = {
+                    let z = db.iter().take_while(|c| **c == b'0').count();
+                    &db[z.min(nb.saturating_sub(1))..]
+                };
+                let o = ta.len().cmp(&tb.len()).then(ta.cmp(tb)).then(na.cmp(&nb));
+                if o != Ordering::Equal {
+                    return o;
+                }
+                a = &a[na..];
+                b = &b[nb..];
+            }
+            (Some(x), Some(y)) => {
+                let o = x.to_ascii_lowercase().cmp(&y.to_ascii_lowercase());
+                if o != Ordering::Equal {
+                    return o;
+                }
+                a = &a[1..];
+                b = &b[1..];
+            }
+        }
+    }
+}
+
+/// The resolved, checked configuration.
+pub struct Config {
+    pub frames: Vec<PathBuf>,
+    pub single_image: bool,
+    pub camera: CameraModel,
+    pub target: TrackTarget,
+    pub detector: DetectorConfig,
+    pub tracker: TrackerConfig,
+    pub fps: f64,
+    pub out_log: Option<PathBuf>,
+    pub draw: Option<PathBuf>,
+    /// Length of the drawn axes, metres.
+    pub axis_m: f64,
+}
+
+fn list_frames(input: &Path) -> Result<(Vec<PathBuf>, bool)> {
+    if !input.exists() {
+        bail!("{}: no such file or folder", input.display());
+    }
+    if input.is_dir() {
+        let mut frames: Vec<PathBuf> = std::fs::read_dir(input)
+            .with_context(|| format!("reading folder {}", input.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_file() && has_ext(p, IMAGE_EXTS))
+            .collect();
+        frames.sort_by(|a, b| {
+            natural_cmp(
+                &a.file_name().unwrap_or_default().to_string_lossy(),
+                &b.file_name().unwrap_or_default().to_string_lossy(),
+            )
+        });
+        if frames.is_empty() {
+            bail!(
+                "{}: no images (.png, .jpg, .jpeg, .tif, .tiff) in this folder",
+                input.display()
+            );
+        }
+        return Ok((frames, false));
+    }
+    if has_ext(input, VIDEO_EXTS) {
+        bail!(
+            "{}: video input is not supported yet (no video decoder in this build); extract the frames to a folder first, e.g. `ffmpeg -i {} frames/%05d.png`, and pass the folder",
+            input.display(),
+            input.display()
+        );
+    }
+    if !has_ext(input, IMAGE_EXTS) {
+        bail!(
+            "{}: not a supported image (use .png, .jpg, .jpeg, .tif or .tiff, or a folder of them)",
+            input.display()
+        );
+    }
+    Ok((vec![input.to_path_buf()], true))
+}
+
+/// Intrinsics fitted to a frame size: equal, scaled (same aspect ratio, with a note on stderr)
+/// or refused.
+pub fn fit_intrinsics(
+    k: &Intrinsics,
+    width: u32,
+    height: u32,
+    calib_name: &str,
+    frame_name: &str,
+) -> Result<Intrinsics> {
+    if k.width == width && k.height == height {
+        return Ok(*k);
+    }
+    let a_cal = k.width as f64 / k.height as f64;
+    let a_img = width as f64 / height as f64;
+    if ((a_cal - a_img) / a_cal).abs() > 0.005 {
+        bail!(
+            "{frame_name} is {width}x{height} but the calibration {calib_name} is for {}x{} (aspect {:.4} vs {:.4}): a different aspect ratio means a crop or another camera mode; calibrate at this resolution",
+            k.width,
+            k.height,
+            a_img,
+            a_cal
+        );
+    }
+    eprintln!(
+        "note: {frame_name} is {width}x{height} but the calibration {calib_name} is for {}x{}; scaling the intrinsics by {:.4} (same aspect ratio)",
+        k.width,
+        k.height,
+        width as f64 / k.width as f64
+    );
+    Ok(k.scaled_to(width, height))
+}
+
+fn parse_grid(s: &str) -> Result<(u32, u32)> {
+    let Some((r, c)) = s.split_once(['x', 'X']) else {
+        bail!("--board {s:?} must look like ROWSxCOLS, e.g. 2x3");
+    };
+    let r: u32 = r.trim().parse().with_context(|| format!("--board {s:?}"))?;
+    let c: u32 = c.trim().parse().with_context(|| format!("--board {s:?}"))?;
+    if r == 0 || c == 0 || r * c > 1000 {
+        bail!("--board {s:?}: rows and columns must be >= 1 (at most 1000 tags)");
+    }
+    Ok((r, c))
+}
+
+fn draw_path(dir: &Path, frame: &Path) -> PathBuf {
+    let stem = frame.file_stem().unwrap_or_default().to_string_lossy();
+    dir.join(format!("{stem}.png"))
+}
+
+/// Checks every flag and input before any work.
+pub fn resolve(args: &Args) -> Result<Config> {
+    let family: TagFamily = args.family.parse()?;
+    if !(args.tag_size_m.is_finite() && args.tag_size_m > 0.0 && args.tag_size_m < 100.0) {
+        bail!(
+            "--tag-size-m must be a positive length in metres, got {}",
+            args.tag_size_m
+        );
+    }
+    if !(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 10_000.0) {
+        bail!("--fps must be in (0, 10000], got {}", args.fps);
+    }
+    let (target, extent_m) = match &args.board {
+        Some(b) => {
+            let (rows, cols) = parse_grid(b)?;
+            let gap = args
+                .gap_m
+                .context("--board needs --gap-m (the gap between black squares, metres)")?;
+            let board = Board::grid(family, rows, cols, args.tag_size_m, gap, args.first_id)?;
+            let ext = (rows.max(cols) as f64) * (args.tag_size_m + gap);
+            (TrackTarget::Board(board), ext)
+        }
+        None => (
+            TrackTarget::Tag {
+                family,
+                id: args.id,
+                size_m: args.tag_size_m,
+            },
+            args.tag_size_m,
+        ),
+    };
+    let layout = pa_track::family_layout(family)?;
+    let max_id = match &target {
+        TrackTarget::Tag { id, .. } => *id,
+        TrackTarget::Board(b) => b.tags.iter().map(|t| t.id).max().unwrap_or(0),
+    };
+    if max_id >= layout.id_count {
+        bail!(
+            "{family} has ids 0..{}; id {max_id} does not exist",
+            layout.id_count
+        );
+    }
+
+    let (frames, single_image) = list_frames(&args.input)?;
+    // The first frame whose header reads sets the size.
+    let (first, (width, height)) = frames
+        .iter()
+        .find_map(|p| image::image_dimensions(p).ok().map(|d| (p, d)))
+        .with_context(|| {
+            format!(
+                "{}: no readable image (tried {} file(s))",
+                args.input.display(),
+                frames.len()
+            )
+        })?;
+    let camera = match (&args.calib, args.fov_deg) {
+        (Some(path), _) => {
+            let model = pa_camera::calib::load_calibration(path)
+                .with_context(|| format!("loading the calibration {}", path.display()))?;
+            let k = fit_intrinsics(
+                &model.intrinsics,
+                width,
+                height,
+                &path.display().to_string(),
+                &first.display().to_string(),
+            )?;
+            CameraModel {
+                intrinsics: k,
+                distortion: model.distortion,
+            }
+        }
+        (None, Some(fov)) => {
+            if !(fov.is_finite() && fov > 1.0 && fov < 179.0) {
+                bail!("--fov-deg must be in (1, 179), got {fov}");
+            }
+            let f = 0.5 * height as f64 / (0.5 * fov.to_radians()).tan();
+            eprintln!(
+                "note: no calibration; assuming an ideal pinhole camera, vertical FOV {fov} deg (f = {f:.1} px), no distortion: poses are approximate"
+            );
+            CameraModel::pinhole(Intrinsics {
+                fx: f,
+                fy: f,
+                cx: (width as f64 - 1.0) / 2.0,
+                cy: (height as f64 - 1.0) / 2.0,
+                width,
+                height,
+            })
+        }
+        (None, None) => bail!(
+            "give --calib FILE (a camera calibration) or --fov-deg D (an approximate pinhole camera)"
+        ),
+    };
+    camera
+        .intrinsics
+        .validate()
+        .context("the camera intrinsics")?;
+
+    if let Some(log) = &args.out_log {
+        if log.exists() && !args.force {
+            bail!("{} exists; pass --force to replace it", log.display());
+        }
+        if log.is_dir() {
+            bail!("--out-log {} is a folder; give a file name", log.display());
+        }
+    }
+    if let Some(dir) = &args.draw {
+        if dir.exists() && !dir.is_dir() {
+            bail!("--draw {} exists and is not a folder", dir.display());
+        }
+        if !args.force {
+            if let Some(p) = frames
+                .iter()
+                .map(|f| draw_path(dir, f))
+                .find(|p| p.exists())
+            {
+                bail!("{} exists; pass --force to replace it", p.display());
+            }
+        }
+    }
+    let mut detector = DetectorConfig::default();
+    if !detector.families.contains(&family) {
+        detector.families = vec![family];
+    }
+    if args.thorough {
+        detector = detector.thorough();
+    }
+    let mut tracker = TrackerConfig::default();
+    if single_image {
+        tracker.frames_to_track = 1;
+    }
+    Ok(Config {
+        frames,
+        single_image,
+        camera,
+        target,
+        detector,
+        tracker,
+        fps: args.fps,
+        out_log: args.out_log.clone(),
+        draw: args.draw.clone(),
+        axis_m: extent_m * 0.5,
+    })
+}
+
+fn state_name(s: TrackState) -> &'static str {
+    match s {
+        TrackState::Searching => "searching",
+        TrackState::Detected => "detected",
+        TrackState::Tracked => "tracked",
+        TrackState::Lost => "lost",
+    }
+}
+
+fn event_name(e: TrackEvent) -> &'static str {
+    match e {
+        TrackEvent::Found => "found",
+        TrackEvent::Tracked => "tracked",
+        TrackEvent::Dropped => "dropped",
+        TrackEvent::Lost => "lost",
+        TrackEvent::Recovered => "recovered",
+        TrackEvent::SearchRestarted => "search_restarted",
+    }
+}
+
+fn round(v: f64, digits: i32) -> f64 {
+    let s = 10f64.powi(digits);
+    (v * s).round() / s
+}
+
+fn pose_json(p: &Pose, rms: Option<f64>) -> Value {
+    let q = p.rotation;
+    let t = p.translation;
+    let mut v = json!({
+        "rotation_xyzw": [round(q.x, 8), round(q.y, 8), round(q.z, 8), round(q.w, 8)],
+        "translation_m": [round(t.x, 7), round(t.y, 7), round(t.z, 7)],
+    });
+    if let Some(r) = rms {
+        v["reprojection_rms_px"] = json!(round(r, 4));
+    }
+    v
+}
+
+fn detection_json(d: &Detection) -> Value {
+    json!({
+        "family": d.family.name(),
+        "id": d.id,
+        "corners_px": d.corners_px.iter().map(|c| [round(c.x, 4), round(c.y, 4)]).collect::<Vec<_>>(),
+        "hamming": d.hamming,
+        "decision_margin": round(d.decision_margin as f64, 2),
+    })
+}
+
+/// One frame's JSON record.
+pub fn frame_json(index: usize, file: &str, w: u32, h: u32, out: &TrackOutput, ms: f64) -> Value {
+    let rms = out.raw.map(|r| r.rms_px);
+    json!({
+        "frame": index,
+        "file": file,
+        "width": w,
+        "height": h,
+        "state": state_name(out.state),
+        "events": out.events.iter().map(|e| event_name(*e)).collect::<Vec<_>>(),
+        "detections": out.detections.iter().map(detection_json).collect::<Vec<_>>(),
+        "pose": out.pose.map(|p| {
+            let mut v = json!({ "camera_from_marker": pose_json(&p, None) });
+            v["reprojection_rms_px"] = rms.map(|r| json!(round(r, 4))).unwrap_or(Value::Null);
+            v
+        }),
+        "measured_pose": out.raw.map(|r| json!({ "camera_from_marker": pose_json(&r.pose, Some(r.rms_px)) })),
+        "used_ids": out.used_ids,
+        "coasting": out.coasting,
+        "used_roi": out.used_roi,
+        "time_ms": round(ms, 3),
+    })
+}
+
+// --- drawing ------------------------------------------------------------------------------
+
+fn put(img: &mut image::RgbImage, x: i64, y: i64, c: [u8; 3]) {
+    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
+        img.put_pixel(x as u32, y as u32, image::Rgb(c));
+    }
+}
+
+fn dot(img: &mut image::RgbImage, p: DVec2, r: i64, c: [u8; 3]) {
+    let (cx, cy) = (p.x.round() as i64, p.y.round() as i64);
+    for dy in -r..=r {
+        for dx in -r..=r {
+            if dx * dx + dy * dy <= r * r {
+                put(img, cx + dx, cy + dy, c);
+            }
+        }
+    }
+}
+
+fn line(img: &mut image::RgbImage, a: DVec2, b: DVec2, thick: i64, c: [u8; 3]) {
+    if !(a.is_finite() && b.is_finite()) {
+        return;
+    }
+    let n = (a.distance(b).ceil() as usize).clamp(1, 20_000);
+    for i in 0..=n {
+        let p = a.lerp(b, i as f64 / n as f64);
+        dot(img, p, thick, c);
+    }
+}
+
+fn draw_frame(
+    gray: &image::GrayImage,
+    out: &TrackOutput,
+    camera: &CameraModel,
+    axis_m: f64,
+) -> image::RgbImage {
+    let mut img = image::DynamicImage::ImageLuma8(gray.clone()).to_rgb8();
+    let thick = ((gray.width().max(gray.height()) as f64 / 800.0).round() as i64).max(1);
+    for d in &out.detections {
+        let used = out.used_ids.contains(&d.id);
+        let col = if used { [0, 230, 0] } else { [255, 200, 0] };
+        for i in 0..4 {
+            line(
+                &mut img,
+                d.corners_px[i],
+                d.corners_px[(i + 1) % 4],
+                thick,
+                col,
+            );
+        }
+        // The printed top-left corner.
+        dot(&mut img, d.corners_px[0], 2 * thick + 1, [255, 0, 255]);
+    }
+    let pose = out.raw.map(|r| r.pose).or(out.pose);
+    if let Some(p) = pose {
+        let o = camera.pixel_from_camera(p.transform_point(DVec3::ZERO));
+        for (axis, col) in [
+            (DVec3::X, [255, 0, 0]),
+            (DVec3::Y, [0, 255, 0]),
+            (DVec3::Z, [0, 90, 255]),
+        ] {
+            let e = camera.pixel_from_camera(p.transform_point(axis * axis_m));
+            if let (Some(o), Some(e)) = (o, e) {
+                line(&mut img, o, e, thick, col);
+            }
+        }
+    }
+    img
+}
+
+// --- run -----------------------------------------------------------------------------------
+
+pub fn run(args: Args) -> Result<()> {
+    let cfg = resolve(&args)?;
+    if let Some(dir) = &cfg.draw {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let mut tracker = Tracker::new(
+        cfg.camera,
+        cfg.target.clone(),
+        cfg.detector.clone(),
+        cfg.tracker,
+    )?;
+    let (w0, h0) = (cfg.camera.intrinsics.width, cfg.camera.intrinsics.height);
+    let bar = if cfg.single_image {
+        ProgressBar::hidden()
+    } else {
+        let b = ProgressBar::new(cfg.frames.len() as u64);
+        b.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} frames {msg} ({eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        b
+    };
+    let mut log = String::new();
+    let mut stdout = std::io::stdout().lock();
+    let (mut skipped, mut tracked, mut seen) = (0usize, 0usize, 0usize);
+    let mut times = Vec::new();
+    for (i, path) in cfg.frames.iter().enumerate() {
+        let name = path
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let t_s = i as f64 / cfg.fps;
+        let decoded =
+            image::open(path).with_context(|| format!("{}: cannot read the image", path.display()));
+        let gray = match decoded {
+            Ok(img) => img.to_luma8(),
+            Err(e) => {
+                if cfg.single_image {
+                    return Err(e);
+                }
+                bar.suspend(|| eprintln!("warning: skipping {:#}", e));
+                skipped += 1;
+                let out = tracker.update_with_detections(Vec::new(), t_s)?;
+                let mut v = frame_json(i, &name, 0, 0, &out, 0.0);
+                v["error"] = json!(format!("{e:#}"));
+                emit(&mut log, &mut stdout, cfg.out_log.is_some(), &v)?;
+                bar.inc(1);
+                continue;
+            }
+        };
+        if (gray.width(), gray.height()) != (w0, h0) {
+            bail!(
+                "{} is {}x{} but the sequence (and camera) is {w0}x{h0}; all frames must have one size",
+                path.display(),
+                gray.width(),
+                gray.height()
+            );
+        }
+        let frame = pa_track::GrayImage::from(&gray);
+        let t0 = Instant::now();
+        let out = tracker
+            .update(&frame, t_s)
+            .with_context(|| format!("tracking in {}", path.display()))?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        times.push(ms);
+        if out.raw.is_some() {
+            seen += 1;
+        }
+        if out.state == TrackState::Tracked {
+            tracked += 1;
+        }
+        let v = frame_json(i, &name, gray.width(), gray.height(), &out, ms);
+        emit(&mut log, &mut stdout, cfg.out_log.is_some(), &v)?;
+        if let Some(dir) = &cfg.draw {
+            let img = draw_frame(&gray, &out, &cfg.camera, cfg.axis_m);
+            let p = draw_path(dir, path);
+            let rgba = image::DynamicImage::ImageRgb8(img).to_rgba8();
+            super::write_png_atomic(&p, rgba.width(), rgba.height(), rgba.as_raw())?;
+        }
+        bar.set_message(state_name(out.state));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if skipped == cfg.frames.len() {
+        bail!(
+            "{}: none of the {} image(s) could be read",
+            args.input.display(),
+            skipped
+        );
+    }
+    if let Some(p) = &cfg.out_log {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
+        pa_model::export::write_atomic(p, log.as_bytes())
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
+    eprintln!(
+        "{} frame(s): target seen in {seen}, tracked in {tracked}, {skipped} unreadable skipped; median detection + pose {median:.2} ms/frame{}",
+        cfg.frames.len(),
+        cfg.out_log
+            .as_ref()
+            .map(|p| format!("; log {}", p.display()))
+            .unwrap_or_default()
+    );
+    Ok(())
+}
+
+fn emit(log: &mut String, stdout: &mut impl Write, to_file: bool, v: &Value) -> Result<()> {
+    let line = serde_json::to_string(v)?;
+    if to_file {
+        log.push_str(&line);
+        log.push('\n');
+    } else {
+        writeln!(stdout, "{line}")?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::natural_cmp;
+
+    #[test]
+    fn natural_order() {
+        let mut v = vec!["f10.png", "f2.png", "F1.png", "f02.png", "a.png"];
+        v.sort_by(|a, b| natural_cmp(a, b));
+        assert_eq!(v, ["a.png", "F1.png", "f2.png", "f02.png", "f10.png"]);
+    }
+}
