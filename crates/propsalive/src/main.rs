@@ -25,6 +25,8 @@ struct Cli {
 enum Command {
     /// Run the built-in default job (nothing to download): writes out/demo/.
     Demo(cmd::demo::Args),
+    /// Measure our methods against the paper's on generated scenes with ground truth.
+    Eval(cmd::eval::Args),
     /// Print a glTF model's nodes, skins, animations, counts and textures.
     Inspect(cmd::inspect::Args),
     /// Render a model's animation to PNG frames (camera framed automatically unless given).
@@ -41,6 +43,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result: Result<()> = match cli.command {
         Command::Demo(args) => cmd::demo::run(args),
+        Command::Eval(args) => cmd::eval::run(args),
         Command::Inspect(args) => cmd::inspect::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Export(args) => cmd::export::run(args),

@@ -1,0 +1,120 @@
+//! Defined behaviour of the frame pipeline on awkward input: tracking lost mid-shot (the output
+//! is the untouched input, state reported), a prop entirely outside the frame (nothing drawn,
+//! nothing filled), and a frame of the wrong size (a typed error naming the sizes).
+
+use glam::Vec3;
+use pa_pipeline::ar::{ArError, ArSettings};
+use pa_render::Renderer;
+use pa_scene::eval::pipeline_for;
+use pa_scene::{Scene, SceneSpec};
+use pa_track::TrackState;
+
+fn setup() -> Option<(Renderer, Scene)> {
+    let mut renderer = match Renderer::new() {
+        Ok(r) => r,
+        Err(e) => {
+            println!("skipped: no wgpu adapter ({e})");
+            return None;
+        }
+    };
+    let spec = SceneSpec {
+        width: 320,
+        height: 180,
+        frames: 8,
+        ..SceneSpec::default()
+    };
+    let scene = Scene::new(spec, &mut renderer).expect("scene");
+    Some((renderer, scene))
+}
+
+#[test]
+fn tracking_lost_mid_shot_passes_the_frame_through() {
+    let Some((mut renderer, scene)) = setup() else {
+        return;
+    };
+    let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours()).expect("pipeline");
+    // Lock on for a few frames, then the marker disappears (a blank grey frame).
+    let mut had_pose = false;
+    for i in 0..8u32 {
+        let f = scene.frame(&mut renderer, i).expect("frame");
+        let out = p
+            .process(
+                &mut renderer,
+                &f.input.rgba8,
+                320,
+                180,
+                f.time_s,
+                0.0,
+                i as f64 / 24.0,
+            )
+            .expect("process");
+        had_pose |= out.camera_from_marker.is_some();
+    }
+    assert!(had_pose, "the tracker must lock on to the board first");
+    let blank = vec![128u8; 320 * 180 * 4];
+    let mut saw_untouched = false;
+    for k in 0..40u32 {
+        let out = p
+            .process(
+                &mut renderer,
+                &blank,
+                320,
+                180,
+                0.5,
+                0.0,
+                (8 + k) as f64 / 24.0,
+            )
+            .expect("process");
+        if out.camera_from_marker.is_none() {
+            assert_eq!(
+                out.rgba8, blank,
+                "no pose: the output is the untouched input"
+            );
+            assert_ne!(out.state, TrackState::Tracked);
+            saw_untouched = true;
+        }
+    }
+    assert!(
+        saw_untouched,
+        "the tracker must give up the pose within 40 blank frames"
+    );
+}
+
+#[test]
+fn prop_outside_the_frame_draws_and_fills_nothing() {
+    let Some((mut renderer, scene)) = setup() else {
+        return;
+    };
+    let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours()).expect("pipeline");
+    let f = scene.frame(&mut renderer, 0).expect("frame");
+    // A camera looking away from the set (the prop is behind it).
+    let away = pa_camera::camera_from_world_look_at(
+        Vec3::new(0.0, 0.5, -0.3),
+        Vec3::new(0.0, 2.0, -0.3),
+        Vec3::NEG_Z,
+    )
+    .expect("camera");
+    let out = p
+        .process_with_pose(&mut renderer, &f.input.rgba8, 320, 180, 0.5, 0.0, away)
+        .expect("process");
+    assert!(out.twin_mask.iter().all(|&m| !m));
+    assert!(out.key_mask.iter().all(|&m| !m));
+    assert_eq!(out.rgba8, f.input.rgba8);
+}
+
+#[test]
+fn wrong_frame_size_is_a_typed_error() {
+    let Some((mut renderer, scene)) = setup() else {
+        return;
+    };
+    let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours()).expect("pipeline");
+    let e = p
+        .process(&mut renderer, &[0u8; 100], 320, 180, 0.0, 0.0, 0.0)
+        .expect_err("short buffer");
+    assert!(matches!(e, ArError::BadFrame { .. }));
+    let msg = e.to_string();
+    assert!(
+        msg.contains("320x180") && msg.contains("230400") && msg.contains("100"),
+        "{msg}"
+    );
+}
