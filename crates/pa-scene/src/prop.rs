@@ -259,8 +259,8 @@ fn hash2(x: i32, y: i32, seed: u32) -> f32 {
     (h & 0x00ff_ffff) as f32 / 16_777_216.0
 }
 
-/// Smooth value noise.
-fn value_noise(x: f32, y: f32, seed: u32) -> f32 {
+/// Smooth value noise in [0, 1) (also paints the generated set).
+pub(crate) fn value_noise(x: f32, y: f32, seed: u32) -> f32 {
     let (xi, yi) = (x.floor() as i32, y.floor() as i32);
     let (fx, fy) = (x - x.floor(), y - y.floor());
     let s = |v: f32| v * v * (3.0 - 2.0 * v);

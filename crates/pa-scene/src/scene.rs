@@ -22,7 +22,7 @@ use pa_render::{
 use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
-use crate::prop::{prop_model, PropSpec};
+use crate::prop::{prop_model, value_noise, PropSpec};
 
 /// Table surface texture.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -140,25 +140,6 @@ impl Rng {
     pub fn f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
-}
-
-fn value_noise(x: f32, y: f32, seed: u32) -> f32 {
-    let h = |xi: i32, yi: i32| {
-        let mut v = (xi as u32)
-            .wrapping_mul(0x8da6_b343)
-            .wrapping_add((yi as u32).wrapping_mul(0xd816_3841))
-            .wrapping_add(seed.wrapping_mul(0xcb1a_b31f));
-        v ^= v >> 13;
-        v = v.wrapping_mul(0x5bd1_e995);
-        v ^= v >> 15;
-        (v & 0xff_ffff) as f32 / 16_777_216.0
-    };
-    let (xi, yi) = (x.floor() as i32, y.floor() as i32);
-    let (fx, fy) = (x - x.floor(), y - y.floor());
-    let s = |v: f32| v * v * (3.0 - 2.0 * v);
-    let (sx, sy) = (s(fx), s(fy));
-    let (a, b, c, d) = (h(xi, yi), h(xi + 1, yi), h(xi, yi + 1), h(xi + 1, yi + 1));
-    a + (b - a) * sx + (c - a) * sy + (a - b - c + d) * sx * sy
 }
 
 /// The table texture (sRGB RGBA8), `px` square, covering `TABLE_M` metres.
