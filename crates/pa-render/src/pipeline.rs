@@ -223,86 +223,23 @@ impl Pipelines {
             ],
             immediate_size: 0,
         });
-        let render = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("pa-render render pipeline"),
-            layout: Some(&render_layout),
-            vertex: wgpu::VertexState {
-                module: &render_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &render_module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[
-                    Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(wgpu::ColorTargetState {
-                        format: CAMERA_Z_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                ],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let render = triangle_pipeline(
+            device,
+            "pa-render render pipeline",
+            &render_layout,
+            &render_module,
+            ("vs_main", "fs_main"),
+            &[COLOR_FORMAT, CAMERA_Z_FORMAT],
+        );
 
-        let visibility = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("pa-render visibility pipeline"),
-            layout: Some(&render_layout),
-            vertex: wgpu::VertexState {
-                module: &render_module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &render_module,
-                entry_point: Some("fs_visibility"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: CAMERA_Z_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let visibility = triangle_pipeline(
+            device,
+            "pa-render visibility pipeline",
+            &render_layout,
+            &render_module,
+            ("vs_main", "fs_visibility"),
+            &[CAMERA_Z_FORMAT],
+        );
 
         let live_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("pa-render live.wgsl"),
@@ -318,54 +255,14 @@ impl Pipelines {
             ],
             immediate_size: 0,
         });
-        let live = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("pa-render live pipeline"),
-            layout: Some(&live_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &live_module,
-                entry_point: Some("vs_live"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                front_face: wgpu::FrontFace::Ccw,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &live_module,
-                entry_point: Some("fs_live"),
-                compilation_options: Default::default(),
-                targets: &[
-                    Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(wgpu::ColorTargetState {
-                        format: CAMERA_Z_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(wgpu::ColorTargetState {
-                        format: LIVE_CODE_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                ],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let live = triangle_pipeline(
+            device,
+            "pa-render live pipeline",
+            &live_pipeline_layout,
+            &live_module,
+            ("vs_live", "fs_live"),
+            &[COLOR_FORMAT, CAMERA_Z_FORMAT, LIVE_CODE_FORMAT],
+        );
 
         let skin_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("pa-render skin pipeline layout"),
@@ -421,4 +318,59 @@ impl Pipelines {
             frame_sampler,
         }
     }
+}
+
+/// A triangle-list pipeline with the state every Props Alive draw shares: no culling (glTF
+/// models are often double-sided), depth test `Less` with writes into [`DEPTH_FORMAT`], no
+/// blending, one colour target per format in `formats`.
+fn triangle_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    (vertex_entry, fragment_entry): (&str, &str),
+    formats: &[wgpu::TextureFormat],
+) -> wgpu::RenderPipeline {
+    let targets: Vec<Option<wgpu::ColorTargetState>> = formats
+        .iter()
+        .map(|&format| {
+            Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })
+        })
+        .collect();
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vertex_entry),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fragment_entry),
+            compilation_options: Default::default(),
+            targets: &targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
