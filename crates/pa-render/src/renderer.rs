@@ -663,12 +663,7 @@ impl Renderer {
             });
             pass.set_pipeline(&self.pipelines.render);
             for (d, bind_group) in draws.iter().zip(&bind_groups) {
-                let texture = d.texture.unwrap_or(&self.white_texture);
-                pass.set_bind_group(0, &d.mesh.bind_group, &[]);
-                pass.set_bind_group(1, bind_group, &[]);
-                pass.set_bind_group(2, &texture.bind_group, &[]);
-                pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
+                record_draw(&mut pass, d, bind_group, &self.white_texture);
             }
         }
         targets.record_copies(&mut encoder);
@@ -791,12 +786,7 @@ impl Renderer {
             });
             pass.set_pipeline(&self.pipelines.visibility);
             for (d, bind_group) in draws.iter().zip(&bind_groups) {
-                let texture = d.texture.unwrap_or(&self.white_texture);
-                pass.set_bind_group(0, &d.mesh.bind_group, &[]);
-                pass.set_bind_group(1, bind_group, &[]);
-                pass.set_bind_group(2, &texture.bind_group, &[]);
-                pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
+                record_draw(&mut pass, d, bind_group, &self.white_texture);
             }
         }
         self.ctx.queue.submit([encoder.finish()]);
@@ -1003,14 +993,8 @@ impl Renderer {
             });
             pass.set_pipeline(&self.pipelines.live);
             for (ld, (group1, group3)) in draws.iter().zip(&bind_groups) {
-                let d = &ld.draw;
-                let texture = d.texture.unwrap_or(&self.white_texture);
-                pass.set_bind_group(0, &d.mesh.bind_group, &[]);
-                pass.set_bind_group(1, group1, &[]);
-                pass.set_bind_group(2, &texture.bind_group, &[]);
                 pass.set_bind_group(3, group3, &[]);
-                pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
+                record_draw(&mut pass, &ld.draw, group1, &self.white_texture);
             }
         }
         targets.record_copies(&mut encoder);
@@ -1177,6 +1161,22 @@ fn depth_attachment(view: &wgpu::TextureView) -> wgpu::RenderPassDepthStencilAtt
         }),
         stencil_ops: None,
     }
+}
+
+/// Binds groups 0-2 of one draw (mesh, per-draw uniforms and joints, texture; white when the
+/// draw has none) and records its indexed draw. Shared by the main, visibility and live passes.
+fn record_draw(
+    pass: &mut wgpu::RenderPass<'_>,
+    d: &Draw<'_>,
+    draw_group: &wgpu::BindGroup,
+    white_texture: &GpuTexture,
+) {
+    let texture = d.texture.unwrap_or(white_texture);
+    pass.set_bind_group(0, &d.mesh.bind_group, &[]);
+    pass.set_bind_group(1, draw_group, &[]);
+    pass.set_bind_group(2, &texture.bind_group, &[]);
+    pass.set_index_buffer(d.mesh.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+    pass.draw_indexed(0..d.mesh.index_count, 0, 0..1);
 }
 
 /// Maps the colour and camera-z readback buffers of `targets` (copies already submitted).
