@@ -5,8 +5,10 @@
 //! in the renderer's vertex stage.
 
 pub mod ar;
+pub mod composite;
 pub mod framing;
 pub mod metrics;
+pub mod shading;
 pub mod shot;
 pub mod twin;
 

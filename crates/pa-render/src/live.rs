@@ -57,21 +57,32 @@
 //!   `dot(Nc, Kc) / (|Nc| |Kc|) < -min_facing_cos` (default
 //!   [`LiveTexturing::DEFAULT_MIN_FACING_COS`] = 0.05, i.e. within about 87 degrees of facing
 //!   the camera);
+//! * [`LiveSample::Stretched`] (only when [`LiveTexturing::max_stretch`] > 0): the animated
+//!   surface faces the camera more than `max_stretch` times as squarely as the key-pose surface
+//!   did (`cos_anim > max_stretch * max(cos_key, 0)`, both cosines between the normal and the
+//!   direction to the camera): the few frame pixels that saw the point at a grazing angle
+//!   would be smeared over a surface now seen face-on;
 //! * [`LiveSample::Occluded`] (only with a visibility map): the key-pose point is the surface
 //!   the frame camera sees there. The map holds, per texel, the camera-space z of the nearest
 //!   key-pose surface rendered by the visibility camera (a pinhole rasterisation, so the point
 //!   is projected *without* distortion for this look-up: `q = (fx' X/Z + cx', fy' Y/Z + cy')`
-//!   with `(X, Y, Z) = visibility_from_frame_camera * Kc`). `1/z` of the four texels around `q`
-//!   is bilinearly interpolated (empty texels count as `1/z = 0`): this is exact on planar
-//!   faces at any slope, since `1/z` is affine in pixel coordinates on a plane, and leans
-//!   towards "occluded" within a pixel of an occluding edge. The point is visible when
+//!   with `(X, Y, Z) = visibility_from_frame_camera * Kc`). `z_map` is the *farthest* surface
+//!   among the four texels around `q` (empty texels ignored; all empty never occludes): on a
+//!   planar face at any slope it is at least the face's own depth there, so a visible point
+//!   always passes, and within a pixel of an occluding edge the test leans towards "visible"
+//!   (the live sample there is the edge the camera really saw, better than any fallback). The
+//!   point is visible when
 //!   `Z <= z_map (1 + depth_tolerance_rel) + depth_tolerance_m` (defaults 0.5% of the depth
 //!   plus 1 mm: [`LiveTexturing::DEFAULT_DEPTH_TOLERANCE_REL`],
 //!   [`LiveTexturing::DEFAULT_DEPTH_TOLERANCE_M`]).
 //!
-//! Invalid fragments take the fallback colour `albedo.rgb * fallback_gain_rgb` (linear), where
-//! albedo is the draw's own base colour (texture sample times `base_color_factor`), unlit; the
-//! gain is the caller's colour match of the model's texture to the frame.
+//! Invalid fragments take the fallback colour `albedo.rgb * E(n)` (linear), where albedo is the
+//! draw's own base colour (texture sample times `base_color_factor`) and `E` is the caller's
+//! estimate of the light falling on the real prop, as a first-order spherical-harmonic
+//! irradiance of the world-space normal `n` of the *animated* surface:
+//! `E_c(n) = max(r_c . (1, n.x, n.y, n.z), 0.02)` for each channel `c`
+//! ([`LiveTexturing::fallback_irradiance`]; a constant gain is `r_c = (g_c, 0, 0, 0)`). So a
+//! surface hidden in the key pose is shaded as the set lights it in the in-between pose.
 //!
 //! The per-pixel code of the nearest surface is read back in
 //! [`LiveRenderedFrame::live_valid`] (0 where no live-textured draw is visible).
@@ -163,14 +174,19 @@ pub struct LiveTexturing<'a> {
     pub key_morph_weights: &'a [f32],
     /// Occlusion test against this map; `None`: outside and back-facing tests only.
     pub visibility: Option<&'a GpuVisibility>,
-    /// Linear RGB gain on the draw's own albedo for fragments without a valid live sample.
-    pub fallback_gain_rgb: [f32; 3],
+    /// Irradiance on the draw's own albedo for fragments without a valid live sample: per
+    /// linear RGB channel, `E(n) = r[0] + r[1] n.x + r[2] n.y + r[3] n.z` of the world-space
+    /// normal (see the module docs).
+    pub fallback_irradiance: [[f32; 4]; 3],
     /// Relative depth tolerance of the occlusion test.
     pub depth_tolerance_rel: f32,
     /// Absolute depth tolerance of the occlusion test, metres.
     pub depth_tolerance_m: f32,
     /// A key-pose normal must face the frame camera by more than this cosine.
     pub min_facing_cos: f32,
+    /// Largest ratio of the animated to the key-pose facing cosine for a live sample
+    /// ([`LiveSample::Stretched`]); 0 disables the test (the default).
+    pub max_stretch: f32,
 }
 
 impl<'a> LiveTexturing<'a> {
@@ -192,10 +208,11 @@ impl<'a> LiveTexturing<'a> {
             key_joint_matrices: &[],
             key_morph_weights: &[],
             visibility: None,
-            fallback_gain_rgb: [1.0; 3],
+            fallback_irradiance: [[1.0, 0.0, 0.0, 0.0]; 3],
             depth_tolerance_rel: Self::DEFAULT_DEPTH_TOLERANCE_REL,
             depth_tolerance_m: Self::DEFAULT_DEPTH_TOLERANCE_M,
             min_facing_cos: Self::DEFAULT_MIN_FACING_COS,
+            max_stretch: 0.0,
         }
     }
 
@@ -216,9 +233,16 @@ impl<'a> LiveTexturing<'a> {
         self
     }
 
-    /// Sets the fallback gain.
+    /// Sets a constant fallback gain (linear RGB; the same for every normal).
     pub fn with_fallback_gain(mut self, fallback_gain_rgb: [f32; 3]) -> Self {
-        self.fallback_gain_rgb = fallback_gain_rgb;
+        self.fallback_irradiance = fallback_gain_rgb.map(|g| [g, 0.0, 0.0, 0.0]);
+        self
+    }
+
+    /// Sets the fallback irradiance (rows of `(constant, n.x, n.y, n.z)` per linear RGB
+    /// channel, world-space normals).
+    pub fn with_fallback_irradiance(mut self, rows: [[f32; 4]; 3]) -> Self {
+        self.fallback_irradiance = rows;
         self
     }
 }
@@ -276,6 +300,9 @@ pub enum LiveSample {
     BackFacing = 2,
     /// Fallback: another key-pose surface is in front of the point in the visibility map.
     Occluded = 3,
+    /// Fallback: the animated surface faces the camera far more squarely than the key-pose
+    /// surface did ([`LiveTexturing::max_stretch`]).
+    Stretched = 4,
     /// Live sample from the camera frame.
     Valid = 255,
 }
@@ -287,6 +314,7 @@ impl LiveSample {
             1 => Self::Outside,
             2 => Self::BackFacing,
             3 => Self::Occluded,
+            4 => Self::Stretched,
             255 => Self::Valid,
             _ => Self::None,
         }
@@ -294,7 +322,10 @@ impl LiveSample {
 
     /// True for the fallback kinds (a live-textured draw without a valid sample).
     pub fn is_fallback(self) -> bool {
-        matches!(self, Self::Outside | Self::BackFacing | Self::Occluded)
+        matches!(
+            self,
+            Self::Outside | Self::BackFacing | Self::Occluded | Self::Stretched
+        )
     }
 }
 
@@ -304,7 +335,8 @@ pub struct LiveRenderedFrame {
     /// Colour and depth, as [`crate::Renderer::render`] returns them.
     pub frame: RenderedFrame,
     /// Per pixel (row-major from the top-left), the [`LiveSample`] code of the nearest
-    /// surface: 255 = live sample, 1/2/3 = fallback (outside / back-facing / occluded),
+    /// surface: 255 = live sample, 1/2/3/4 = fallback (outside / back-facing / occluded /
+    /// stretched),
     /// 0 = background or a draw without live texturing.
     pub live_valid: Vec<u8>,
 }

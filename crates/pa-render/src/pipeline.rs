@@ -66,7 +66,8 @@ pub(crate) struct LiveUniforms {
     pub distortion_k3_tolerances: [f32; 4],
     pub visibility_intrinsics: [f32; 4],
     pub visibility_size: [f32; 4],
-    pub fallback_gain: [f32; 4],
+    pub fallback_irradiance: [[f32; 4]; 3],
+    pub stretch: [f32; 4],
     pub key_counts: [u32; 4],
     pub flags: [u32; 4],
 }

@@ -190,12 +190,45 @@ impl LiveTargets {
     }
 }
 
+/// Cumulative readback timings of a [`crate::Renderer`] ([`crate::Renderer::readback_times`]);
+/// subtract two snapshots ([`ReadbackTimes::since`]) to time a piece of work.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReadbackTimes {
+    /// Milliseconds spent waiting for submitted GPU work to finish before its results could be
+    /// mapped. On a software rasteriser (lavapipe, llvmpipe) this is mostly the rendering
+    /// itself, not the transfer.
+    pub wait_ms: f64,
+    /// Milliseconds spent copying mapped readback buffers to CPU memory, removing the row
+    /// padding and decoding depth: the CPU side of the GPU -> CPU readback.
+    pub copy_ms: f64,
+    /// Number of readbacks (one per `read_buffers` call).
+    pub count: u64,
+}
+
+impl ReadbackTimes {
+    /// The time spent between the snapshot `earlier` and `self`.
+    pub fn since(&self, earlier: &ReadbackTimes) -> ReadbackTimes {
+        ReadbackTimes {
+            wait_ms: self.wait_ms - earlier.wait_ms,
+            copy_ms: self.copy_ms - earlier.copy_ms,
+            count: self.count.saturating_sub(earlier.count),
+        }
+    }
+}
+
+/// Milliseconds since `t`.
+pub(crate) fn ms_since(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
 /// Maps the given buffers for reading (after the copies were submitted), waits, and returns
-/// their contents.
+/// their contents; adds the wait and the copy to `times`.
 pub(crate) fn read_buffers(
     device: &wgpu::Device,
     buffers: &[&wgpu::Buffer],
+    times: &mut ReadbackTimes,
 ) -> Result<Vec<Vec<u8>>, RenderError> {
+    let t_wait = std::time::Instant::now();
     let (sender, receiver) = std::sync::mpsc::channel();
     for (i, buffer) in buffers.iter().enumerate() {
         let sender = sender.clone();
@@ -214,6 +247,9 @@ pub(crate) fn read_buffers(
             .map_err(|_| RenderError::Readback("map callback was not called".to_owned()))?;
         result.map_err(|e| RenderError::Readback(format!("buffer {i}: {e}")))?;
     }
+    times.wait_ms += ms_since(t_wait);
+    times.count += 1;
+    let t_copy = std::time::Instant::now();
     let mut out = Vec::with_capacity(buffers.len());
     for buffer in buffers {
         let data = {
@@ -225,6 +261,7 @@ pub(crate) fn read_buffers(
         buffer.unmap();
         out.push(data);
     }
+    times.copy_ms += ms_since(t_copy);
     Ok(out)
 }
 

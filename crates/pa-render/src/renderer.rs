@@ -14,7 +14,7 @@ use crate::mesh::{self, CpuMesh, GpuMesh};
 use crate::pipeline::{
     DrawUniforms, LiveUniforms, Pipelines, CAMERA_Z_FORMAT, DEPTH_FORMAT, SKIN_WORKGROUP_SIZE,
 };
-use crate::readback::{self, LiveTargets, Targets};
+use crate::readback::{self, LiveTargets, ReadbackTimes, Targets};
 use crate::texture::{self, CpuTexture, GpuTexture};
 
 /// Most joint matrices per draw.
@@ -146,6 +146,8 @@ pub struct Renderer {
     empty_visibility_view: wgpu::TextureView,
     targets: Option<Targets>,
     live_targets: Option<LiveTargets>,
+    /// Cumulative readback timings (for benchmarks).
+    readback_times: ReadbackTimes,
 }
 
 fn mat(m: &Mat4) -> [[f32; 4]; 4] {
@@ -204,6 +206,7 @@ impl Renderer {
             empty_visibility_view,
             targets: None,
             live_targets: None,
+            readback_times: ReadbackTimes::default(),
         })
     }
 
@@ -215,6 +218,13 @@ impl Renderer {
     /// The wgpu backend in use.
     pub fn backend(&self) -> wgpu::Backend {
         self.ctx.info.backend
+    }
+
+    /// Cumulative time this renderer spent reading results back from the GPU since it was
+    /// created: waiting for submitted work, and copying the mapped buffers out. Take two
+    /// snapshots and [`ReadbackTimes::since`] to time a piece of work.
+    pub fn readback_times(&self) -> ReadbackTimes {
+        self.readback_times
     }
 
     /// Largest accepted render width/height.
@@ -537,14 +547,22 @@ impl Renderer {
                 .all(|x| x.is_finite()),
             ),
             (
-                "fallback_gain_rgb",
-                l.fallback_gain_rgb.iter().all(|x| x.is_finite()),
+                "fallback_irradiance",
+                l.fallback_irradiance
+                    .iter()
+                    .flatten()
+                    .all(|x| x.is_finite()),
             ),
             (
                 "live tolerances",
-                [l.depth_tolerance_rel, l.depth_tolerance_m, l.min_facing_cos]
-                    .iter()
-                    .all(|x| x.is_finite()),
+                [
+                    l.depth_tolerance_rel,
+                    l.depth_tolerance_m,
+                    l.min_facing_cos,
+                    l.max_stretch,
+                ]
+                .iter()
+                .all(|x| x.is_finite()),
             ),
         ];
         for (what, ok) in finite_checks {
@@ -678,7 +696,7 @@ impl Renderer {
             });
         }
 
-        let frame = read_frame(device, &targets)?;
+        let frame = read_frame(device, &targets, &mut self.readback_times)?;
         self.targets = Some(targets);
         Ok(frame)
     }
@@ -831,12 +849,8 @@ impl Renderer {
                     l.depth_tolerance_rel,
                     l.depth_tolerance_m,
                 ];
-                u.fallback_gain = [
-                    l.fallback_gain_rgb[0],
-                    l.fallback_gain_rgb[1],
-                    l.fallback_gain_rgb[2],
-                    0.0,
-                ];
+                u.fallback_irradiance = l.fallback_irradiance;
+                u.stretch = [l.max_stretch.max(0.0), 0.0, 0.0, 0.0];
                 u.key_counts = [
                     d.joint_matrices.len() as u32,
                     l.key_joint_matrices.len() as u32,
@@ -1009,13 +1023,16 @@ impl Renderer {
             });
         }
 
-        let frame = read_frame(device, &targets.base)?;
-        let codes = readback::read_buffers(device, &[&targets.code_readback])?;
+        let frame = read_frame(device, &targets.base, &mut self.readback_times)?;
+        let codes =
+            readback::read_buffers(device, &[&targets.code_readback], &mut self.readback_times)?;
+        let t_unpad = std::time::Instant::now();
         let padded = readback::padded_bytes_per_row_of(width, 1) as usize;
         let live_valid = codes
             .first()
             .map(|c| readback::unpad_rows(c, width as usize, padded, height as usize))
             .unwrap_or_default();
+        self.readback_times.copy_ms += readback::ms_since(t_unpad);
         self.live_targets = Some(targets);
         Ok(LiveRenderedFrame { frame, live_valid })
     }
@@ -1118,7 +1135,7 @@ impl Renderer {
         self.ctx.queue.submit([encoder.finish()]);
         self.pop_scope(validation, "GPU skinning")?;
 
-        let data = readback::read_buffers(device, &[&staging])?;
+        let data = readback::read_buffers(device, &[&staging], &mut self.readback_times)?;
         let floats: Vec<f32> = data
             .first()
             .map(|d| {
@@ -1180,12 +1197,18 @@ fn record_draw(
 }
 
 /// Maps the colour and camera-z readback buffers of `targets` (copies already submitted).
-fn read_frame(device: &wgpu::Device, targets: &Targets) -> Result<RenderedFrame, RenderError> {
+fn read_frame(
+    device: &wgpu::Device,
+    targets: &Targets,
+    times: &mut ReadbackTimes,
+) -> Result<RenderedFrame, RenderError> {
     let (width, height) = (targets.width, targets.height);
     let data = readback::read_buffers(
         device,
         &[&targets.color_readback, &targets.camera_z_readback],
+        times,
     );
+    let t_unpad = std::time::Instant::now();
     let (color, camera_z) = match data.as_deref() {
         Ok([color, camera_z]) => (color, camera_z),
         _ => {
@@ -1208,6 +1231,7 @@ fn read_frame(device: &wgpu::Device, targets: &Targets) -> Result<RenderedFrame,
             }
         })
         .collect();
+    times.copy_ms += readback::ms_since(t_unpad);
     Ok(RenderedFrame {
         width,
         height,

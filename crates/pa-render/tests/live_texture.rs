@@ -655,7 +655,15 @@ fn hidden_back_facing_and_outside_key_points_fall_back() {
     renderer
         .update_texture(&frame, &CpuTexture::solid(W, H, frame_colour))
         .expect("frame update");
-    let gain = [0.5f32, 1.0, 1.5];
+    // Fallback irradiance E_c(n) = r_c . (1, n): every animated quad faces +Z (towards the
+    // camera), so E = (0.5, 1.0, 1.5); a normal with the wrong sign would give
+    // (-0.1, -0.2, 0.5), clamped to (0.02, 0.02, 0.5).
+    let irradiance = [
+        [0.2f32, 0.0, 0.0, 0.3],
+        [0.4, 0.0, 0.0, 0.6],
+        [1.0, 0.0, 0.0, 0.5],
+    ];
+    let gain: [f32; 3] = std::array::from_fn(|c| irradiance[c][0] + irradiance[c][3]);
     let visibility = renderer
         .render_visibility(&camera, &[pose(&key)], W, H)
         .expect("visibility");
@@ -666,7 +674,7 @@ fn hidden_back_facing_and_outside_key_points_fall_back() {
     )
     .with_key_pose(&key, &[])
     .with_visibility(&visibility)
-    .with_fallback_gain(gain);
+    .with_fallback_irradiance(irradiance);
     let out =
         render_live_with_visibility(&mut renderer, &camera, &[pose(&animated).with_live(live)]);
 
@@ -793,7 +801,7 @@ fn live_input_errors() {
         Err(RenderError::JointIndexOutOfRange { draw: 0, .. })
     ));
     let mut live = LiveTexturing::new(&frame, frame_camera, Mat4::IDENTITY);
-    live.fallback_gain_rgb = [f32::NAN, 1.0, 1.0];
+    live.fallback_irradiance[1][2] = f32::NAN;
     assert!(matches!(
         renderer.render_live(&camera, None, &[draw.with_live(live)], [0.0; 4], 8, 8),
         Err(RenderError::NonFiniteDrawInput { draw: 0, .. })

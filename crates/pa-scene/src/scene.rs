@@ -58,6 +58,9 @@ pub struct SceneSpec {
     pub background: Background,
     pub camera_path: CameraPath,
     pub prop: PropSpec,
+    /// Samples per pixel side of the camera and ground-truth images (`s x s` samples box-
+    /// filtered in linear light, as a sensor integrates over its pixel area; 1 = aliased).
+    pub supersample: u32,
 }
 
 impl Default for SceneSpec {
@@ -73,6 +76,7 @@ impl Default for SceneSpec {
             background: Background::Wood,
             camera_path: CameraPath::Handheld,
             prop: PropSpec::default(),
+            supersample: 2,
         }
     }
 }
@@ -329,8 +333,10 @@ impl Scene {
         camera_from_marker: Mat4,
         prop_time_s: Option<f32>,
     ) -> Result<RenderedFrame, RenderError> {
+        let s = self.spec.supersample.clamp(1, 4);
+        let (w, h) = (self.spec.width * s, self.spec.height * s);
         let camera = CpuCamera {
-            intrinsics: self.intrinsics,
+            intrinsics: self.intrinsics.scaled_to(w, h),
             camera_from_world: camera_from_marker,
             near_m: NEAR_M,
             far_m: FAR_M,
@@ -346,14 +352,15 @@ impl Scene {
             frame = self.twin.frame(&self.model, &pose, marker_from_prop());
             draws.extend(self.twin.draws(&frame));
         }
-        renderer.render(
+        let full = renderer.render(
             &camera,
             Some(&set_lighting()),
             &draws,
             [0.1, 0.1, 0.12, 1.0],
-            self.spec.width,
-            self.spec.height,
-        )
+            w,
+            h,
+        )?;
+        Ok(downsample(&full, s))
     }
 
     /// Renders camera frame `i`: input (key prop) and ground truth (in-between).
@@ -419,6 +426,64 @@ impl Scene {
         prop_time_s: Option<f32>,
     ) -> Result<RenderedFrame, RenderError> {
         self.render(renderer, camera_from_marker, prop_time_s)
+    }
+}
+
+/// Box-filters `s x s` blocks of `frame` in linear light (depth: the nearest surface).
+pub fn downsample(frame: &RenderedFrame, s: u32) -> RenderedFrame {
+    if s <= 1 {
+        return frame.clone();
+    }
+    let (w, h) = (frame.width / s, frame.height / s);
+    let lut: [f32; 256] = std::array::from_fn(|v| {
+        let c = v as f32 / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    });
+    let encode = |l: f32| -> u8 {
+        let l = l.clamp(0.0, 1.0);
+        let c = if l <= 0.003_130_8 {
+            12.92 * l
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        };
+        (c * 255.0 + 0.5) as u8
+    };
+    let n = (s * s) as f32;
+    let fw = frame.width as usize;
+    let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);
+    let mut depth_m = Vec::with_capacity((w * h) as usize);
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let mut sum = [0f32; 4];
+            let mut depth = f32::INFINITY;
+            for dy in 0..s as usize {
+                for dx in 0..s as usize {
+                    let i = (y * s as usize + dy) * fw + x * s as usize + dx;
+                    for c in 0..3 {
+                        sum[c] += lut[frame.rgba8[i * 4 + c] as usize];
+                    }
+                    sum[3] += frame.rgba8[i * 4 + 3] as f32;
+                    depth = depth.min(frame.depth_m[i]);
+                }
+            }
+            rgba8.extend_from_slice(&[
+                encode(sum[0] / n),
+                encode(sum[1] / n),
+                encode(sum[2] / n),
+                (sum[3] / n + 0.5) as u8,
+            ]);
+            depth_m.push(depth);
+        }
+    }
+    RenderedFrame {
+        width: w,
+        height: h,
+        rgba8,
+        depth_m,
     }
 }
 

@@ -62,6 +62,15 @@ fn ours_beats_the_paper_and_keeps_its_floors() {
                 .map(|f| f.psnr_prop),
         )
     };
+    // The turning head: in-betweens 20 degrees or more from the key pose, where the key prop
+    // hides or foreshortens what the in-between shows.
+    let far = |m: &[FrameMetrics]| {
+        mean(
+            m.iter()
+                .filter(|f| f.key_distance_deg >= 20.0)
+                .map(|f| f.psnr_prop),
+        )
+    };
     let tracked = ours.iter().filter(|m| m.tracked).count();
     let ours_prop = mean(ours.iter().map(|m| m.psnr_prop)).expect("prop psnr");
     let paper_prop = mean(paper.iter().map(|m| m.psnr_prop)).expect("prop psnr");
@@ -69,35 +78,42 @@ fn ours_beats_the_paper_and_keeps_its_floors() {
     let ours_rev = mean(ours.iter().map(|m| m.psnr_revealed)).expect("revealed psnr");
     let rect_rev = mean(rect.iter().map(|m| m.psnr_revealed)).expect("revealed psnr");
     let near_ours = near(&ours).expect("frames near the key");
+    let far_ours = far(&ours).expect("frames far from the key");
+    let far_novis = far(&no_vis).expect("frames far from the key");
     let rot = pa_scene::eval::median(ours.iter().map(|m| m.rot_err_deg)).expect("poses");
     println!(
         "tracked {tracked}/{}; prop PSNR ours {ours_prop:.2} dB, paper {paper_prop:.2}, \
-         no visibility {novis_prop:.2}; within 15 deg of the key {near_ours:.2} dB; revealed \
-         PSNR ray fill {ours_rev:.2} dB vs rectangle {rect_rev:.2}; median rotation error \
-         {rot:.3} deg",
+         no visibility {novis_prop:.2}; within 15 deg of the key {near_ours:.2} dB; 20 deg or \
+         more: visibility {far_ours:.2} dB vs none {far_novis:.2}; revealed PSNR ray fill \
+         {ours_rev:.2} dB vs rectangle {rect_rev:.2}; median rotation error {rot:.3} deg",
         ours.len()
     );
-    // Floors (measured values are printed above and in the README).
+    // Floors, below the values measured on lavapipe (printed above; README) by a margin for
+    // driver differences.
     assert!(tracked >= ours.len() - 3, "the tracker must hold the board");
-    assert!(rot < 1.5, "median rotation error {rot} deg");
+    // Regression: the One Euro filter once lagged the handheld camera by 0.7 deg (it filtered
+    // the speed's magnitude, so it could not tell motion from jitter); raw poses are ~0.15.
+    assert!(rot < 0.4, "median rotation error {rot} deg");
     assert!(
-        near_ours > 22.0,
+        near_ours > 27.0,
         "prop PSNR within 15 degrees of the key: {near_ours}"
     );
     assert!(
-        ours_rev > rect_rev + 1.0,
+        ours_rev > rect_rev + 5.0,
         "ray fill {ours_rev} vs rectangle {rect_rev}"
     );
-    // Measured here: ours 23.0 dB, paper 23.9, no visibility 23.0 over the whole clip: the
-    // visibility fallback (the model's unlit texture, colour-matched) does not yet beat
-    // sampling the occluder, and the 4 px dilation costs a little at the silhouette. Pinned as
-    // a no-regression bound until the fallback improves (see the README).
+    // Visibility (lit fallback for hidden and foreshortened key-pose points) on the turning
+    // head.
     assert!(
-        ours_prop > paper_prop - 1.5,
-        "ours {ours_prop} vs paper {paper_prop}"
+        far_ours > far_novis + 1.0,
+        "visibility {far_ours} vs none {far_novis} at 20 degrees or more"
     );
     assert!(
-        ours_prop > novis_prop - 0.5,
+        ours_prop > novis_prop + 0.4,
         "visibility {ours_prop} vs none {novis_prop}"
+    );
+    assert!(
+        ours_prop > paper_prop + 0.3,
+        "ours {ours_prop} vs paper {paper_prop}"
     );
 }

@@ -73,9 +73,9 @@ impl Default for PoseFilterConfig {
         Self {
             enabled: true,
             translation_min_cutoff_hz: 1.5,
-            translation_beta: 40.0,
+            translation_beta: 400.0,
             rotation_min_cutoff_hz: 1.5,
-            rotation_beta: 8.0,
+            rotation_beta: 80.0,
             d_cutoff_hz: 1.0,
         }
     }
@@ -91,8 +91,11 @@ pub struct PoseFilter {
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct FilterState {
     pose: Pose,
-    speed_t: f64,
-    speed_r: f64,
+    /// Low-passed velocity (m/s), a vector as in the One Euro paper: alternating jitter
+    /// averages out of it, real motion does not.
+    velocity_t: DVec3,
+    /// Low-passed angular velocity (rad/s, scaled axis in the filtered pose's frame).
+    velocity_r: DVec3,
     t: f64,
 }
 
@@ -115,8 +118,8 @@ impl PoseFilter {
         let Some(s) = self.state.filter(|_| c.enabled) else {
             self.state = Some(FilterState {
                 pose,
-                speed_t: 0.0,
-                speed_r: 0.0,
+                velocity_t: DVec3::ZERO,
+                velocity_r: DVec3::ZERO,
                 t: t_s,
             });
             return pose;
@@ -124,9 +127,10 @@ impl PoseFilter {
         let dt = if t_s > s.t { t_s - s.t } else { 1.0 / 60.0 };
         // Translation.
         let dtr: DVec3 = pose.translation - s.pose.translation;
-        let speed_t = s.speed_t + alpha(c.d_cutoff_hz, dt) * (dtr.length() / dt - s.speed_t);
+        let a_d = alpha(c.d_cutoff_hz, dt);
+        let velocity_t = s.velocity_t + (dtr / dt - s.velocity_t) * a_d;
         let a_t = alpha(
-            c.translation_min_cutoff_hz + c.translation_beta * speed_t,
+            c.translation_min_cutoff_hz + c.translation_beta * velocity_t.length(),
             dt,
         );
         let translation = s.pose.translation + dtr * a_t;
@@ -137,8 +141,11 @@ impl PoseFilter {
         }
         let delta = (s.pose.rotation.conjugate() * q).normalize();
         let w = delta.to_scaled_axis();
-        let speed_r = s.speed_r + alpha(c.d_cutoff_hz, dt) * (w.length() / dt - s.speed_r);
-        let a_r = alpha(c.rotation_min_cutoff_hz + c.rotation_beta * speed_r, dt);
+        let velocity_r = s.velocity_r + (w / dt - s.velocity_r) * a_d;
+        let a_r = alpha(
+            c.rotation_min_cutoff_hz + c.rotation_beta * velocity_r.length(),
+            dt,
+        );
         let rotation = (s.pose.rotation * DQuat::from_scaled_axis(w * a_r)).normalize();
         let out = Pose {
             rotation,
@@ -146,8 +153,8 @@ impl PoseFilter {
         };
         self.state = Some(FilterState {
             pose: out,
-            speed_t,
-            speed_r,
+            velocity_t,
+            velocity_r,
             t: t_s,
         });
         out

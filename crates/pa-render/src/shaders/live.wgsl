@@ -7,7 +7,7 @@
 @group(2) @binding(0) var base_color_texture: texture_2d<f32>;
 @group(2) @binding(1) var base_color_sampler: sampler;
 
-// Per-draw live-texturing uniforms (336 bytes).
+// Per-draw live-texturing uniforms (384 bytes).
 struct LiveUniforms {
     key_world_from_mesh: mat4x4<f32>,
     // The camera that took the frame (OpenCV axes).
@@ -26,8 +26,11 @@ struct LiveUniforms {
     visibility_intrinsics: vec4<f32>,
     // x, y: visibility map width and height in pixels.
     visibility_size: vec4<f32>,
-    // rgb: linear gain applied to the model's own albedo where no live sample is valid.
-    fallback_gain: vec4<f32>,
+    // Irradiance on the model's own albedo where no live sample is valid: per linear RGB
+    // channel, (constant, n.x, n.y, n.z) of the animated surface's world-space normal.
+    fallback_irradiance: array<vec4<f32>, 3>,
+    // x: max stretch (animated / key-pose facing cosine; 0 = no test).
+    stretch: vec4<f32>,
     // x: key joint base, y: key joint count, z: key morph base, w: key morph count.
     key_counts: vec4<u32>,
     // x: 1 = live-textured draw, y: 1 = a visibility map is bound.
@@ -45,6 +48,7 @@ const LIVE_NONE: u32 = 0u;
 const LIVE_OUTSIDE: u32 = 1u;
 const LIVE_BACK_FACING: u32 = 2u;
 const LIVE_OCCLUDED: u32 = 3u;
+const LIVE_STRETCHED: u32 = 4u;
 const LIVE_VALID: u32 = 255u;
 
 struct LiveVsOut {
@@ -57,6 +61,9 @@ struct LiveVsOut {
     // coordinates on the key-pose triangle as the fragment has on the animated triangle.
     @location(3) key_camera: vec3<f32>,
     @location(4) key_normal_camera: vec3<f32>,
+    // The animated surface's position and normal in the frame camera's coordinates.
+    @location(5) anim_camera: vec3<f32>,
+    @location(6) anim_normal_camera: vec3<f32>,
 }
 
 @vertex
@@ -71,6 +78,8 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
     out.camera_z = (draw.camera_from_world * world).z;
     out.key_camera = vec3<f32>(0.0);
     out.key_normal_camera = vec3<f32>(0.0, 0.0, -1.0);
+    out.anim_camera = vec3<f32>(0.0);
+    out.anim_normal_camera = vec3<f32>(0.0, 0.0, -1.0);
     if (live.flags.x == 1u) {
         let key = skin_vertex_pose(
             vid,
@@ -85,6 +94,11 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
         out.key_normal_camera = transform_normal(
             mat3x3<f32>(c[0].xyz, c[1].xyz, c[2].xyz),
             key.normal_world,
+        );
+        out.anim_camera = (c * world).xyz;
+        out.anim_normal_camera = transform_normal(
+            mat3x3<f32>(c[0].xyz, c[1].xyz, c[2].xyz),
+            skinned.normal_world,
         );
     }
     return out;
@@ -130,7 +144,13 @@ struct LiveLookup {
     pixel: vec2<f32>,
 }
 
-fn live_lookup(pc: vec3<f32>, nc: vec3<f32>) -> LiveLookup {
+// Cosine between a normal and the direction from the point to the camera (at the origin).
+fn facing_cos(p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let len2 = dot(n, n) * dot(p, p);
+    return select(-1.0, -dot(n, p) * inverseSqrt(len2), len2 > 0.0);
+}
+
+fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> LiveLookup {
     var out: LiveLookup;
     out.code = LIVE_OUTSIDE;
     out.pixel = vec2<f32>(0.0);
@@ -152,13 +172,19 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>) -> LiveLookup {
     }
     // 2. Facing the frame camera: n . (point - eye) / |point - eye| < -min_facing_cos.
     let min_facing_cos = live.distortion_k3_tolerances.y;
-    let len2 = dot(nc, nc);
-    if (!(len2 > 0.0) || dot(nc, pc) * inverseSqrt(len2 * dot(pc, pc)) > -min_facing_cos) {
+    let cos_key = facing_cos(pc, nc);
+    if (!(cos_key > min_facing_cos)) {
         out.code = LIVE_BACK_FACING;
         return out;
     }
+    // 2b. Not stretched: the animated surface does not face the camera far more squarely.
+    let max_stretch = live.stretch.x;
+    if (max_stretch > 0.0 && facing_cos(pa, na) > max_stretch * max(cos_key, 0.0)) {
+        out.code = LIVE_STRETCHED;
+        return out;
+    }
     // 3. Not occluded: compare with the visibility map (pinhole projection, since the map is
-    // rasterised without distortion), 1/z bilinearly interpolated from the 4 nearest texels.
+    // rasterised without distortion), against the farthest surface of the 4 nearest texels.
     if (live.flags.y == 1u) {
         let pv = (live.visibility_from_frame_camera * vec4<f32>(pc, 1.0)).xyz;
         if (!(pv.z > 1e-6)) {
@@ -171,14 +197,18 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>) -> LiveLookup {
             return out;
         }
         let q0 = floor(q);
-        let f = q - q0;
         let x0 = i32(q0.x);
         let y0 = i32(q0.y);
-        let top = mix(visibility_inv_z(x0, y0), visibility_inv_z(x0 + 1, y0), f.x);
-        let bottom = mix(visibility_inv_z(x0, y0 + 1), visibility_inv_z(x0 + 1, y0 + 1), f.x);
-        let inv_z = mix(top, bottom, f.y);
+        // Smallest non-zero 1/z (the farthest surface); 0 when all four are empty.
+        var inv_z = 0.0;
+        for (var k = 0; k < 4; k++) {
+            let v = visibility_inv_z(x0 + (k & 1), y0 + (k >> 1u));
+            if (v > 0.0 && (inv_z == 0.0 || v < inv_z)) {
+                inv_z = v;
+            }
+        }
         // Visible when z <= z_map (1 + rel) + abs, i.e. z / z_map <= 1 + rel + abs / z_map;
-        // an empty map (inv_z = 0) never occludes.
+        // an empty neighbourhood (inv_z = 0) never occludes.
         let rel = live.distortion_k3_tolerances.z;
         let abs_m = live.distortion_k3_tolerances.w;
         if (pv.z * inv_z > 1.0 + rel + abs_m * inv_z) {
@@ -207,15 +237,30 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
     var rgb = albedo.rgb;
     var code = LIVE_NONE;
     if (live.flags.x == 1u) {
-        // Unlit: a live sample already carries the real lighting, and the fallback gain is the
-        // caller's colour match of the albedo to the frame.
-        let lookup = live_lookup(in.key_camera, in.key_normal_camera);
+        // A live sample already carries the real lighting; the fallback is the albedo under
+        // the caller's irradiance estimate, at the animated surface's normal.
+        let lookup = live_lookup(
+            in.key_camera,
+            in.key_normal_camera,
+            in.anim_camera,
+            in.anim_normal_camera,
+        );
         code = lookup.code;
         if (code == LIVE_VALID) {
             let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
             rgb = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
         } else {
-            rgb = albedo.rgb * live.fallback_gain.rgb;
+            var n = normalize(in.normal_world);
+            if (front_facing == (draw.flags.x == 1u)) {
+                n = -n;
+            }
+            let sh = vec4<f32>(1.0, n);
+            let e = vec3<f32>(
+                dot(live.fallback_irradiance[0], sh),
+                dot(live.fallback_irradiance[1], sh),
+                dot(live.fallback_irradiance[2], sh),
+            );
+            rgb = albedo.rgb * max(e, vec3<f32>(0.02));
         }
     } else if (draw.counts.w == 1u) {
         var n = normalize(in.normal_world);
