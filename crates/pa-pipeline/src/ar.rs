@@ -354,13 +354,32 @@ impl ArPipeline {
             .frame(&self.model, &key_pose, self.marker_from_prop);
         timings.animate_ms = ms(t);
 
-        // Texture: the key-pose silhouette (model texture, unlit) gives the diminish mask and
-        // the colour match; then the animated twin.
+        // Texture: the key pose as the camera sees it gives the diminish mask and the light on
+        // the prop (with visibility: the visibility map, read back; without: a plain unlit
+        // render, whose colours also give the baseline's colour gain); then the animated twin.
         let t = Instant::now();
         let key_draws = self.twin.draws(&key_frame);
-        let key_render = renderer.render(&camera, None, &key_draws, [0.0; 4], width, height)?;
-        let key_mask_bool: Vec<bool> = key_render.depth_m.iter().map(|d| d.is_finite()).collect();
-        let gain = colour_gain(rgba8, &key_render.rgba8, &key_mask_bool);
+        let (key_depth_m, gain) = match self.settings.texturing {
+            Texturing::Live { visibility: true } => {
+                let map = match self.visibility.as_mut() {
+                    Some(v) if v.size() == (width, height) => {
+                        renderer.update_visibility(v, &camera, &key_draws)?;
+                        v
+                    }
+                    _ => self
+                        .visibility
+                        .insert(renderer.render_visibility(&camera, &key_draws, width, height)?),
+                };
+                (renderer.read_visibility(map)?, None)
+            }
+            _ => {
+                let r = renderer.render(&camera, None, &key_draws, [0.0; 4], width, height)?;
+                let mask: Vec<bool> = r.depth_m.iter().map(|d| d.is_finite()).collect();
+                let gain = colour_gain(rgba8, &r.rgba8, &mask);
+                (r.depth_m, Some(gain))
+            }
+        };
+        let key_mask_bool: Vec<bool> = key_depth_m.iter().map(|d| d.is_finite()).collect();
         let cpu_frame = CpuTexture {
             width,
             height,
@@ -380,18 +399,6 @@ impl ArPipeline {
                     }
                     _ => renderer.upload_frame(&cpu_frame)?,
                 };
-                if visibility {
-                    match self.visibility.as_mut() {
-                        Some(v) if v.size() == (width, height) => {
-                            renderer.update_visibility(v, &camera, &key_draws)?
-                        }
-                        _ => {
-                            self.visibility = Some(
-                                renderer.render_visibility(&camera, &key_draws, width, height)?,
-                            )
-                        }
-                    }
-                }
                 // The fallback's shading: the set's light measured on the visible key prop
                 // (ours), or one colour gain (the baseline without visibility).
                 let irradiance = if visibility {
@@ -400,7 +407,7 @@ impl ArPipeline {
                         camera: &camera_model,
                         camera_from_world: camera_from_marker,
                         frame_rgba8: rgba8,
-                        key_depth_m: &key_render.depth_m,
+                        key_depth_m: &key_depth_m,
                         width,
                         height,
                     };
@@ -411,9 +418,9 @@ impl ArPipeline {
                         &view,
                         IRRADIANCE_SAMPLES,
                     );
-                    Irradiance::fit(&samples).unwrap_or(Irradiance::constant(gain))
+                    Irradiance::fit(&samples).unwrap_or_else(|| Irradiance::mean(&samples))
                 } else {
-                    Irradiance::constant(gain)
+                    Irradiance::constant(gain.unwrap_or([1.0; 3]))
                 };
                 let live_camera = LiveCamera::new(camera_model, camera_from_marker);
                 let vis = if visibility {
@@ -463,7 +470,7 @@ impl ArPipeline {
         let t = Instant::now();
         let mut background = ImageRgba8::new(width, height, rgba8.to_vec())?;
         let mut key_mask = Mask::zeros(width, height)?;
-        let bbox = mask_from_depth(&key_render.depth_m, width, height, &mut key_mask)?;
+        let bbox = mask_from_depth(&key_depth_m, width, height, &mut key_mask)?;
         let fill_mask = if self.settings.dilate_px > 0 && bbox.is_some() {
             let mut dilated = Mask::zeros(width, height)?;
             dilate(

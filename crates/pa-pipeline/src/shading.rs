@@ -45,6 +45,17 @@ impl Irradiance {
         }
     }
 
+    /// The mean ratio as a constant (1 without samples): the fallback of [`Irradiance::fit`].
+    pub fn mean(samples: &[IrradianceSample]) -> Self {
+        if samples.is_empty() {
+            return Self::constant([1.0; 3]);
+        }
+        let n = samples.len() as f32;
+        Self::constant(std::array::from_fn(|c| {
+            samples.iter().map(|s| s.ratio_rgb[c]).sum::<f32>() / n
+        }))
+    }
+
     /// The irradiance at a unit normal (unclamped).
     pub fn at(&self, normal: Vec3) -> [f32; 3] {
         self.rows
@@ -328,6 +339,19 @@ mod tests {
         let e = Irradiance::fit(&vec![s; MIN_SAMPLES]).expect("fit");
         let v = e.at(Vec3::Z);
         assert!(v.iter().all(|x| (x - 1.0).abs() < 0.01), "{v:?}");
+    }
+
+    #[test]
+    fn mean_of_few_samples() {
+        let s = |r: f32| IrradianceSample {
+            normal_world: Vec3::Z,
+            ratio_rgb: [r, 2.0 * r, 0.5],
+        };
+        assert_eq!(
+            Irradiance::mean(&[s(1.0), s(3.0)]).at(Vec3::X),
+            [2.0, 4.0, 0.5]
+        );
+        assert_eq!(Irradiance::mean(&[]).at(Vec3::Y), [1.0; 3]);
     }
 
     #[test]

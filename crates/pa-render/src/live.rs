@@ -140,8 +140,11 @@ pub struct GpuVisibility {
     pub(crate) width: u32,
     pub(crate) height: u32,
     pub(crate) camera: CpuCamera,
+    pub(crate) camera_z: wgpu::Texture,
     pub(crate) camera_z_view: wgpu::TextureView,
     pub(crate) depth_view: wgpu::TextureView,
+    /// Staging buffer of [`crate::Renderer::read_visibility`], made on first use.
+    pub(crate) readback: Option<wgpu::Buffer>,
 }
 
 impl GpuVisibility {

@@ -737,7 +737,9 @@ impl Renderer {
         let camera_z = make(
             "pa-render visibility map",
             CAMERA_Z_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
         );
         let depth = make(
             "pa-render visibility depth buffer",
@@ -751,7 +753,9 @@ impl Renderer {
             height,
             camera: *camera,
             camera_z_view: camera_z.create_view(&Default::default()),
+            camera_z,
             depth_view: depth.create_view(&Default::default()),
+            readback: None,
         };
         self.update_visibility(&mut visibility, camera, draws)?;
         Ok(visibility)
@@ -811,6 +815,80 @@ impl Renderer {
         self.pop_scope(validation, "visibility map")?;
         visibility.camera = *camera;
         Ok(())
+    }
+
+    /// Reads a visibility map back: per texel (row-major from the top-left), the camera-space z
+    /// (metres) of the nearest surface, `f32::INFINITY` where empty. One map instead of a
+    /// second render when the caller also needs the key-pose silhouette on the CPU.
+    pub fn read_visibility(
+        &mut self,
+        visibility: &mut GpuVisibility,
+    ) -> Result<Vec<f32>, RenderError> {
+        if visibility.renderer_id != self.id {
+            return Err(RenderError::ForeignResource {
+                draw: 0,
+                what: "visibility map",
+            });
+        }
+        let (width, height) = (visibility.width, visibility.height);
+        let padded_row = readback::padded_bytes_per_row(width);
+        let device = &self.ctx.device;
+        let buffer = visibility.readback.get_or_insert_with(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("pa-render visibility readback"),
+                size: u64::from(padded_row) * u64::from(height),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("pa-render visibility readback"),
+        });
+        encoder.copy_texture_to_buffer(
+            visibility.camera_z.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_row),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        self.ctx.queue.submit([encoder.finish()]);
+        let data = readback::read_buffers(device, &[buffer], &mut self.readback_times);
+        let t = std::time::Instant::now();
+        let bytes = match data.as_deref() {
+            Ok([bytes]) => readback::unpad_rows(
+                bytes,
+                width as usize * 4,
+                padded_row as usize,
+                height as usize,
+            ),
+            _ => {
+                return Err(data.err().unwrap_or_else(|| {
+                    RenderError::Readback("unexpected readback buffer count".to_owned())
+                }))
+            }
+        };
+        let depth = bytes
+            .chunks_exact(4)
+            .map(|b| {
+                let z = f32::from_bits(u32::from_ne_bytes([b[0], b[1], b[2], b[3]]));
+                if z > 0.0 && z.is_finite() {
+                    z
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect();
+        self.readback_times.copy_ms += readback::ms_since(t);
+        Ok(depth)
     }
 
     /// Group 3 bind group of a draw of [`Renderer::render_live`].

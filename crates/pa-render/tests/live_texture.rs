@@ -371,9 +371,22 @@ fn texture_follows_a_two_bone_bend() {
     let frame = renderer
         .upload_frame(&as_frame_texture(&key_frame))
         .expect("frame");
-    let visibility = renderer
+    let mut visibility = renderer
         .render_visibility(&camera, &[pose(&key)], W, H)
         .expect("visibility");
+    // Read back, the map is the key pose's depth as a plain render of it sees it (skinned).
+    let map = renderer.read_visibility(&mut visibility).expect("read map");
+    assert_eq!(map.len(), key_frame.depth_m.len());
+    for (i, (m, d)) in map.iter().zip(&key_frame.depth_m).enumerate() {
+        assert_eq!(
+            m.is_finite(),
+            d.is_finite(),
+            "texel {i}: map {m}, render {d}"
+        );
+        if m.is_finite() {
+            assert!((m - d).abs() < 1e-5, "texel {i}: map {m}, render {d}");
+        }
+    }
 
     for (name, bent, min_facing_cos, min_valid, max_valid) in &cases {
         let truth = renderer

@@ -13,13 +13,13 @@
 
 use glam::{Mat4, Quat};
 use pa_camera::CameraModel;
-use pa_model::anim;
+use pa_model::{anim, skin};
 use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, StageTimings};
 use pa_pipeline::metrics::{psnr_region, ssim_region};
 use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
-use crate::prop::JOINT_HEAD;
+use crate::prop::{JOINT_HEAD, JOINT_JAW};
 use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
 
 /// Metrics of one frame.
@@ -29,7 +29,8 @@ pub struct FrameMetrics {
     pub key: usize,
     /// Head rotation between the in-between and the key pose, degrees.
     pub key_distance_deg: f64,
-    /// Head displacement between the in-between and the key pose, in prop heights.
+    /// Mean displacement of the head's surface between the in-between and the key pose, in
+    /// prop heights.
     pub key_distance_props: f64,
     pub psnr_prop: Option<f64>,
     pub ssim_prop: Option<f64>,
@@ -50,18 +51,37 @@ fn head_world(scene: &Scene, time_s: f32) -> Mat4 {
     world[head_node]
 }
 
-/// (rotation degrees, displacement in prop heights) of the head between two times.
+/// (rotation degrees, displacement in prop heights) of the head between two times: the head
+/// joint's rotation, and the mean distance the head's surface moves (its vertices weighted
+/// mostly to the head or jaw joint; the joint's own origin sits on the neck's turn axis and
+/// barely moves).
 pub fn key_distance(scene: &Scene, time_s: f32, key_time_s: f32) -> (f64, f64) {
     let a = head_world(scene, time_s);
     let b = head_world(scene, key_time_s);
-    let (_, ra, ta) = a.to_scale_rotation_translation();
-    let (_, rb, tb) = b.to_scale_rotation_translation();
+    let (_, ra, _) = a.to_scale_rotation_translation();
+    let (_, rb, _) = b.to_scale_rotation_translation();
     let rel: Quat = ra * rb.inverse();
     let angle = 2.0 * rel.w.abs().clamp(-1.0, 1.0).acos() as f64;
-    (
-        angle.to_degrees(),
-        ((ta - tb).length() / scene.spec.prop.height_m) as f64,
-    )
+    let model = &scene.model;
+    let pa = skin::pose_meshes(model, &anim::sample(model, 0, time_s));
+    let pb = skin::pose_meshes(model, &anim::sample(model, 0, key_time_s));
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (p, q) in pa.iter().zip(&pb) {
+        let prim = &model.meshes[p.mesh].primitives[p.primitive];
+        for (v, (j, w)) in prim.joints.iter().zip(&prim.weights).enumerate() {
+            let k = (0..8).max_by(|&x, &y| w[x].total_cmp(&w[y])).unwrap_or(0);
+            if [JOINT_HEAD, JOINT_JAW].contains(&(j[k] as usize)) {
+                sum += f64::from((p.positions[v] - q.positions[v]).length());
+                n += 1;
+            }
+        }
+    }
+    let displacement = if n > 0 {
+        sum / n as f64 / f64::from(scene.spec.prop.height_m)
+    } else {
+        f64::NAN
+    };
+    (angle.to_degrees(), displacement)
 }
 
 /// Rotation (degrees) and translation (mm) error between two `camera_from_marker` poses.

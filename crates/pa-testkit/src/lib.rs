@@ -1,5 +1,7 @@
 //! Test helpers shared by the crates: locating `../shared/conformance` and reading its
-//! skinning references. Only ever a dev-dependency.
+//! skinning references, and golden-image comparison ([`golden`]). Only ever a dev-dependency.
+
+pub mod golden;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

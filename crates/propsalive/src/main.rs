@@ -5,6 +5,7 @@
 //! configuration before any work starts, so that bad input fails fast with a clear message.
 
 mod cmd;
+mod plot;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -27,6 +28,9 @@ enum Command {
     Demo(cmd::demo::Args),
     /// Measure our methods against the paper's on generated scenes with ground truth.
     Eval(cmd::eval::Args),
+    /// Time the pipeline per stage on generated frames (sizes x prop vertices x props).
+    #[command(long_about = cmd::bench::LONG_ABOUT)]
+    Bench(cmd::bench::Args),
     /// Print a glTF model's nodes, skins, animations, counts and textures.
     Inspect(cmd::inspect::Args),
     /// Render a model's animation to PNG frames (camera framed automatically unless given).
@@ -37,6 +41,8 @@ enum Command {
     Marker(cmd::marker::Args),
     /// Detect and track the marker in an image or a folder of images; one JSON line a frame.
     Track(cmd::track::Args),
+    /// Stop-motion take: a folder of stills through the pipeline, resumable (frames + log).
+    Run(cmd::run::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -44,11 +50,13 @@ fn main() -> std::process::ExitCode {
     let result: Result<()> = match cli.command {
         Command::Demo(args) => cmd::demo::run(args),
         Command::Eval(args) => cmd::eval::run(args),
+        Command::Bench(args) => cmd::bench::run(args),
         Command::Inspect(args) => cmd::inspect::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Export(args) => cmd::export::run(args),
         Command::Marker(args) => cmd::marker::run(args),
         Command::Track(args) => cmd::track::run(args),
+        Command::Run(args) => cmd::run::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

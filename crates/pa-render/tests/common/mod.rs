@@ -44,100 +44,27 @@ pub fn camera(camera_from_world: Mat4) -> CpuCamera {
     }
 }
 
-fn target_dir() -> PathBuf {
-    match std::env::var_os("CARGO_TARGET_DIR") {
-        Some(dir) => PathBuf::from(dir),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target"),
-    }
-}
-
-fn golden_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(format!("{name}.png"))
-}
-
 /// Golden tolerance: a pixel matches when every channel differs by at most this much...
 pub const GOLDEN_MAX_CHANNEL_DIFF: u8 = 2;
 /// ...and at least this fraction of pixels must match.
 pub const GOLDEN_MIN_MATCHING_FRACTION: f64 = 0.995;
 
-fn save_png(path: &std::path::Path, width: u32, height: u32, rgba8: &[u8]) {
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir).expect("create directory for png");
-    }
-    image::save_buffer(path, rgba8, width, height, image::ColorType::Rgba8).expect("write png");
-}
-
-/// Compares `frame` against `tests/golden/<name>.png` (tolerance: every channel within
-/// [`GOLDEN_MAX_CHANNEL_DIFF`]/255 on at least [`GOLDEN_MIN_MATCHING_FRACTION`] of the pixels).
-/// `UPDATE_GOLDEN=1` (re)writes the golden instead. On failure writes
-/// `target/golden-failures/<name>.actual.png` and `<name>.diff.png` and names them.
+/// Compares `frame` against `tests/golden/<name>.png` ([`pa_testkit::golden::assert_golden`]:
+/// every channel within [`GOLDEN_MAX_CHANNEL_DIFF`]/255 on at least
+/// [`GOLDEN_MIN_MATCHING_FRACTION`] of the pixels; `UPDATE_GOLDEN=1` rewrites it; failures
+/// write `target/golden-failures/<name>.{actual,diff}.png`).
 pub fn assert_golden(name: &str, frame: &RenderedFrame) {
-    let path = golden_path(name);
-    if std::env::var("UPDATE_GOLDEN").is_ok_and(|v| v == "1") {
-        save_png(&path, frame.width, frame.height, &frame.rgba8);
-        eprintln!("wrote golden {}", path.display());
-        return;
-    }
-    let failures = target_dir().join("golden-failures");
-    let _ = std::fs::create_dir_all(&failures);
-    let failures = failures.canonicalize().unwrap_or(failures);
-    let actual_path = failures.join(format!("{name}.actual.png"));
-    let diff_path = failures.join(format!("{name}.diff.png"));
-    let golden = match image::open(&path) {
-        Ok(img) => img.to_rgba8(),
-        Err(e) => {
-            save_png(&actual_path, frame.width, frame.height, &frame.rgba8);
-            panic!(
-                "golden {} unreadable ({e}); actual written to {}; run with UPDATE_GOLDEN=1 to create it",
-                path.display(),
-                actual_path.display()
-            );
-        }
-    };
-    assert_eq!(
-        (golden.width(), golden.height()),
-        (frame.width, frame.height),
-        "golden {} has another size",
-        path.display()
+    pa_testkit::golden::assert_golden(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+        name,
+        frame.width,
+        frame.height,
+        &frame.rgba8,
+        pa_testkit::golden::Tolerance {
+            max_channel_diff: GOLDEN_MAX_CHANNEL_DIFF,
+            min_matching_fraction: GOLDEN_MIN_MATCHING_FRACTION,
+        },
     );
-    let mut diff = Vec::with_capacity(frame.rgba8.len());
-    let mut matching = 0usize;
-    let mut worst = 0u8;
-    for (a, g) in frame
-        .rgba8
-        .chunks_exact(4)
-        .zip(golden.as_raw().chunks_exact(4))
-    {
-        let d = a
-            .iter()
-            .zip(g)
-            .map(|(x, y)| x.abs_diff(*y))
-            .max()
-            .unwrap_or(0);
-        worst = worst.max(d);
-        if d <= GOLDEN_MAX_CHANNEL_DIFF {
-            matching += 1;
-            diff.extend_from_slice(&[g[0] / 4, g[1] / 4, g[2] / 4, 255]);
-        } else {
-            diff.extend_from_slice(&[255, 0, 255, 255]);
-        }
-    }
-    let total = (frame.width * frame.height) as usize;
-    let fraction = matching as f64 / total as f64;
-    if fraction < GOLDEN_MIN_MATCHING_FRACTION {
-        save_png(&actual_path, frame.width, frame.height, &frame.rgba8);
-        save_png(&diff_path, frame.width, frame.height, &diff);
-        panic!(
-            "golden {name}: only {:.3}% of pixels within {GOLDEN_MAX_CHANNEL_DIFF}/255 (need {:.1}%, worst diff {worst}); \
-             see {} and {} (magenta = mismatch); UPDATE_GOLDEN=1 rewrites the golden",
-            100.0 * fraction,
-            100.0 * GOLDEN_MIN_MATCHING_FRACTION,
-            actual_path.display(),
-            diff_path.display()
-        );
-    }
 }
 
 /// A 64x64 sRGB texture of 8x8 cells of 8x8 texels: cell (i, j) (column i, row j from the top)

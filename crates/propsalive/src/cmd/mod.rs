@@ -1,11 +1,13 @@
 //! One module per subcommand; each has `Args` (raw flags) and `run`.
 
+pub mod bench;
 pub mod demo;
 pub mod eval;
 pub mod export;
 pub mod inspect;
 pub mod marker;
 pub mod render;
+pub mod run;
 pub mod track;
 
 use std::path::Path;

@@ -150,7 +150,7 @@ pub struct Config {
     pub axis_m: f64,
 }
 
-fn list_frames(input: &Path) -> Result<(Vec<PathBuf>, bool)> {
+pub(crate) fn list_frames(input: &Path) -> Result<(Vec<PathBuf>, bool)> {
     if !input.exists() {
         bail!("{}: no such file or folder", input.display());
     }
@@ -383,7 +383,7 @@ pub fn resolve(args: &Args) -> Result<Config> {
     })
 }
 
-fn state_name(s: TrackState) -> &'static str {
+pub(crate) fn state_name(s: TrackState) -> &'static str {
     match s {
         TrackState::Searching => "searching",
         TrackState::Detected => "detected",

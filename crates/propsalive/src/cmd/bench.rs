@@ -1,0 +1,789 @@
+//! `propsalive bench`: the whole frame pipeline on generated frames, timed per stage.
+//!
+//! For every configuration (frame size x prop vertex count x props per frame) it generates the
+//! built-in scene's frames first (input and ground truth, kept in memory), then runs the
+//! pipeline on them with no disk I/O and no measurement inside the timed loop, and only then
+//! measures the output against the ground truth (prop PSNR), so that speed work can be checked
+//! against quality.
+//!
+//! What is timed, per frame:
+//! - **track**: grey conversion, AprilTag detection and board pose by the real tracker, once
+//!   per frame;
+//! - **animate**, **texture**, **diminish**, **composite**: the [`ArPipeline`] stages, summed
+//!   over the N props of the frame;
+//! - **readback**: mapping the GPU results and copying them to CPU memory (row padding,
+//!   depth decoding), taken out of texture, where the pipeline counts it. Texture keeps the
+//!   wait for the GPU to finish, which on a software rasteriser is the rasterisation itself
+//!   (reported as `gpu_wait` in the JSON);
+//! - **end-to-end**: the wall time of the whole frame (all props).
+//!
+//! "N props" means N independent `ArPipeline`s on the same frame: the first tracks the board
+//! (`ArPipeline::process`), the other N - 1 reuse its tracked pose
+//! (`ArPipeline::process_with_pose`), so tracking is paid once and every other stage N
+//! times, each prop with its own twin, frame upload, renders, readbacks and fill of a
+//! full-size frame. The props stand at the same place; PSNR is of the first prop's output.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use pa_camera::CameraModel;
+use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, Fill, StageTimings};
+use pa_render::Renderer;
+use pa_scene::eval::{measure, pipeline_for};
+use pa_scene::scene::marker_from_prop;
+use pa_scene::{PropSpec, Scene, SceneFrame, SceneSpec};
+use serde_json::{json, Value};
+
+/// The long help of `propsalive bench` (what is timed and what "N props" means).
+pub const LONG_ABOUT: &str = "\
+Time the whole pipeline per stage on generated frames (no disk I/O in the timed loop).
+
+The built-in scene's frames (input and ground truth) are generated first and kept in memory; \
+the pipeline then runs on them (warm-up frames untimed), and the output's prop PSNR against \
+the ground truth is measured afterwards, outside the timed loop.
+
+By default the configurations vary one axis at a time around 1280x720, an 8,000-vertex prop \
+and one prop per frame: sizes 640x480, 1280x720, 1920x1080; props of 2k, 8k, 32k, 128k \
+vertices; 1, 4 and 16 props per frame (8 configurations). --grid runs every combination.
+
+\"N props\" = N independent pipelines on the same frame: the first tracks the marker, the \
+other N-1 reuse its tracked pose (process_with_pose), so tracking is paid once a frame and \
+animate, texture, diminish, composite and readback N times (props at the same place; PSNR is \
+of the first prop's output). Frames the tracker loses are still rendered, at the true pose, so \
+every stage is timed; the `tracked` column counts the frames it did track.
+
+\"readback\" is the CPU side of reading GPU results back (map, copy, unpad, decode); \
+\"texture\" excludes it but includes waiting for the GPU, which on a software rasteriser is \
+the rasterisation itself (gpu_wait in the JSON). Times are median / 95th percentile in ms; \
+fps = 1000 / median end-to-end. Peak RSS is the process's high-water mark during the timed \
+loop (reset before it where Linux allows) and includes the frames the bench holds in memory \
+(held_frames_mib in the JSON). The JSON (written atomically) also names the adapter, backend, \
+CPU and the load average before and after the run.";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Frame sizes, WIDTHxHEIGHT, comma-separated [default: 640x480,1280x720,1920x1080;
+    /// --quick: 640x480,1280x720].
+    #[arg(long, value_delimiter = ',')]
+    pub sizes: Option<Vec<String>>,
+    /// Prop vertex counts (approximate: the generated bust's grid is rounded)
+    /// [default: 2000,8000,32000,128000; --quick: 2000,8000].
+    #[arg(long, value_delimiter = ',')]
+    pub vertices: Option<Vec<u32>>,
+    /// Props per frame [default: 1,4,16; --quick: 1,4].
+    #[arg(long, value_delimiter = ',')]
+    pub props: Option<Vec<u32>>,
+    /// Timed frames per configuration [default: 24; --quick: 8].
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Untimed warm-up frames per configuration (the tracker needs 3 to lock on).
+    #[arg(long, default_value_t = 3)]
+    pub warmup: u32,
+    /// Every combination of sizes x vertices x props instead of one axis at a time.
+    #[arg(long)]
+    pub grid: bool,
+    /// Fewer frames and configurations (see the defaults of each flag).
+    #[arg(long)]
+    pub quick: bool,
+    /// Pipeline settings to time.
+    #[arg(long, value_enum, default_value_t = Method::Ours)]
+    pub method: Method,
+    /// Scene seed (camera path, table texture).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Where to write the results as JSON (atomically).
+    #[arg(long, default_value = "out/bench/bench.json")]
+    pub json: PathBuf,
+}
+
+/// Which pipeline settings the bench times.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Live texturing with visibility, ray fill, 4 px dilation (ArSettings::ours).
+    Ours,
+    /// The paper's: live texturing without visibility, rectangle fill.
+    Paper,
+    /// Ours with the clean-plate fill.
+    Plate,
+}
+
+impl Method {
+    fn settings(self) -> ArSettings {
+        match self {
+            Method::Ours => ArSettings::ours(),
+            Method::Paper => ArSettings::paper(),
+            Method::Plate => ArSettings {
+                fill: Fill::CleanPlate,
+                ..ArSettings::ours()
+            },
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Method::Ours => "ours (live texturing + visibility, ray fill, 4 px dilation)",
+            Method::Paper => "paper (live texturing, no visibility, rectangle fill)",
+            Method::Plate => "ours with clean plate (live + visibility, plate fill)",
+        }
+    }
+}
+
+/// One configuration to time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Config {
+    width: u32,
+    height: u32,
+    vertices: u32,
+    props: u32,
+}
+
+/// The checked settings of a run.
+struct Plan {
+    configs: Vec<Config>,
+    frames: u32,
+    warmup: u32,
+    method: Method,
+    seed: u64,
+    json: PathBuf,
+}
+
+const MAX_PROPS: u32 = 64;
+const MIN_VERTICES: u32 = 100;
+const MAX_VERTICES: u32 = 2_000_000;
+const MAX_FRAMES: u32 = 10_000;
+
+fn plan(args: Args) -> Result<Plan> {
+    let quick = args.quick;
+    let sizes = args.sizes.unwrap_or_else(|| {
+        let s: &[&str] = if quick {
+            &["640x480", "1280x720"]
+        } else {
+            &["640x480", "1280x720", "1920x1080"]
+        };
+        s.iter().map(|s| s.to_string()).collect()
+    });
+    let sizes: Vec<(u32, u32)> = sizes
+        .iter()
+        .map(|s| super::parse_size(s).with_context(|| format!("--sizes {s:?}")))
+        .collect::<Result<_>>()?;
+    let vertices = args.vertices.unwrap_or_else(|| {
+        if quick {
+            vec![2_000, 8_000]
+        } else {
+            vec![2_000, 8_000, 32_000, 128_000]
+        }
+    });
+    let props = args
+        .props
+        .unwrap_or_else(|| if quick { vec![1, 4] } else { vec![1, 4, 16] });
+    let frames = args.frames.unwrap_or(if quick { 8 } else { 24 });
+    if sizes.is_empty() || vertices.is_empty() || props.is_empty() {
+        bail!("--sizes, --vertices and --props each need at least one value");
+    }
+    if let Some(v) = vertices
+        .iter()
+        .find(|&&v| !(MIN_VERTICES..=MAX_VERTICES).contains(&v))
+    {
+        bail!("--vertices {v} is out of range ({MIN_VERTICES}..={MAX_VERTICES})");
+    }
+    if let Some(p) = props.iter().find(|&&p| !(1..=MAX_PROPS).contains(&p)) {
+        bail!("--props {p} is out of range (1..={MAX_PROPS})");
+    }
+    if !(1..=MAX_FRAMES).contains(&frames) {
+        bail!("--frames {frames} is out of range (1..={MAX_FRAMES})");
+    }
+    if args.warmup > MAX_FRAMES {
+        bail!(
+            "--warmup {} is out of range (0..={MAX_FRAMES})",
+            args.warmup
+        );
+    }
+    let configs = if args.grid {
+        let mut c = Vec::new();
+        for &(width, height) in &sizes {
+            for &v in &vertices {
+                for &p in &props {
+                    c.push(Config {
+                        width,
+                        height,
+                        vertices: v,
+                        props: p,
+                    });
+                }
+            }
+        }
+        c
+    } else {
+        axes(&sizes, &vertices, &props)
+    };
+    Ok(Plan {
+        configs,
+        frames,
+        warmup: args.warmup,
+        method: args.method,
+        seed: args.seed,
+        json: args.json,
+    })
+}
+
+/// One axis at a time around a base configuration (1280x720, 8,000 vertices, 1 prop where
+/// they are listed, else the first value of each list), without repeats.
+fn axes(sizes: &[(u32, u32)], vertices: &[u32], props: &[u32]) -> Vec<Config> {
+    let base_size = if sizes.contains(&(1280, 720)) {
+        (1280, 720)
+    } else {
+        sizes[0]
+    };
+    let base_v = if vertices.contains(&8_000) {
+        8_000
+    } else {
+        vertices[0]
+    };
+    let base_p = if props.contains(&1) { 1 } else { props[0] };
+    let config = |(width, height): (u32, u32), vertices: u32, props: u32| Config {
+        width,
+        height,
+        vertices,
+        props,
+    };
+    let mut out: Vec<Config> = Vec::new();
+    let candidates = sizes
+        .iter()
+        .map(|&s| config(s, base_v, base_p))
+        .chain(vertices.iter().map(|&v| config(base_size, v, base_p)))
+        .chain(props.iter().map(|&p| config(base_size, base_v, p)));
+    for c in candidates {
+        if !out.contains(&c) {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// The timings of one frame (all props).
+#[derive(Debug, Clone, Copy, Default)]
+struct Sample {
+    track: f64,
+    animate: f64,
+    texture: f64,
+    diminish: f64,
+    composite: f64,
+    readback: f64,
+    gpu_wait: f64,
+    end_to_end: f64,
+    tracked: bool,
+}
+
+/// Runs one frame through every prop's pipeline.
+fn run_frame(
+    pipes: &mut [ArPipeline],
+    renderer: &mut Renderer,
+    scene: &Scene,
+    f: &SceneFrame,
+) -> Result<(ArFrame, Sample)> {
+    let (w, h) = (f.input.width, f.input.height);
+    let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
+    let frame_time = f.index as f64 / scene.spec.fps as f64;
+    let Some((first, rest)) = pipes.split_first_mut() else {
+        bail!("no pipeline");
+    };
+    let rb0 = renderer.readback_times();
+    let t0 = Instant::now();
+    let mut out = first.process(
+        renderer,
+        &f.input.rgba8,
+        w,
+        h,
+        f.time_s,
+        key_time,
+        frame_time,
+    )?;
+    let tracked = out.camera_from_marker.is_some();
+    if !tracked {
+        // Lost: render at the true pose so that every stage is still timed.
+        let track_ms = out.timings.track_ms;
+        out = first.process_with_pose(
+            renderer,
+            &f.input.rgba8,
+            w,
+            h,
+            f.time_s,
+            key_time,
+            f.camera_from_marker,
+        )?;
+        out.timings.track_ms = track_ms;
+    }
+    let pose = out.camera_from_marker.unwrap_or(f.camera_from_marker);
+    let mut sum: StageTimings = out.timings;
+    for p in rest {
+        let o = p.process_with_pose(renderer, &f.input.rgba8, w, h, f.time_s, key_time, pose)?;
+        sum.animate_ms += o.timings.animate_ms;
+        sum.texture_ms += o.timings.texture_ms;
+        sum.diminish_ms += o.timings.diminish_ms;
+        sum.composite_ms += o.timings.composite_ms;
+    }
+    let end_to_end = ms(t0);
+    let rb = renderer.readback_times().since(&rb0);
+    Ok((
+        out,
+        Sample {
+            track: sum.track_ms,
+            animate: sum.animate_ms,
+            texture: (sum.texture_ms - rb.copy_ms).max(0.0),
+            diminish: sum.diminish_ms,
+            composite: sum.composite_ms,
+            readback: rb.copy_ms,
+            gpu_wait: rb.wait_ms,
+            end_to_end,
+            tracked,
+        },
+    ))
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Median and 95th percentile (nearest rank) of `v`.
+#[derive(Debug, Clone, Copy)]
+struct Stat {
+    median: f64,
+    p95: f64,
+}
+
+fn stat(mut v: Vec<f64>) -> Stat {
+    if v.is_empty() {
+        return Stat {
+            median: f64::NAN,
+            p95: f64::NAN,
+        };
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let median = if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    };
+    let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
+    Stat {
+        median,
+        p95: v[rank - 1],
+    }
+}
+
+/// The results of one configuration.
+struct Row {
+    config: Config,
+    actual_vertices: usize,
+    frames: usize,
+    tracked: usize,
+    stages: Vec<(&'static str, Stat)>,
+    gpu_wait: Stat,
+    end_to_end: Stat,
+    psnr_prop: Option<f64>,
+    peak_rss_mb: Option<f64>,
+    rss_start_mb: Option<f64>,
+    peak_scope: &'static str,
+    held_mb: f64,
+    seconds: f64,
+}
+
+const STAGES: [&str; 6] = [
+    "track",
+    "animate",
+    "texture",
+    "diminish",
+    "composite",
+    "readback",
+];
+
+/// A memory figure of this process from /proc/self/status in MiB (Linux): `VmHWM` (peak
+/// resident set) or `VmRSS` (current).
+fn status_mib(field: &str) -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
+    let kb: f64 = line[field.len()..]
+        .trim_start_matches(':')
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kb / 1024.0)
+}
+
+/// Resets VmHWM to the current resident set (Linux 4.0+); false where that is not possible.
+fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// The 1-minute load average (Linux), to tell a quiet machine from a busy one.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// The CPU model and the number of cores this process may use.
+fn cpu_description() -> (String, usize) {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    (model, cores)
+}
+
+fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str) -> Result<Row> {
+    let started = Instant::now();
+    let total = plan.warmup + plan.frames;
+    let spec = SceneSpec {
+        seed: plan.seed,
+        width: config.width,
+        height: config.height,
+        frames: total.max(SceneSpec::default().frames),
+        prop: PropSpec::with_vertex_count(config.vertices),
+        ..SceneSpec::default()
+    };
+    let bar = ProgressBar::new(u64::from(total) * 2 + u64::from(plan.frames));
+    bar.set_style(
+        ProgressStyle::with_template("{prefix} {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_prefix(label.to_string());
+    bar.set_message("building the scene");
+    let scene = Scene::new(spec, renderer).map_err(anyhow::Error::msg)?;
+    let actual_vertices = scene.model.vertex_count();
+
+    // Every frame is generated before the timed loop.
+    bar.set_message("generating frames");
+    let mut frames = Vec::with_capacity(total as usize);
+    for i in 0..total {
+        let mut f = scene.frame(renderer, i)?;
+        // Depth is not needed; do not hold it.
+        f.input.depth_m = Vec::new();
+        f.ground_truth.depth_m = Vec::new();
+        frames.push(f);
+        bar.inc(1);
+    }
+
+    let settings = plan.method.settings();
+    let mut pipes = Vec::with_capacity(config.props as usize);
+    pipes.push(pipeline_for(&scene, renderer, settings).map_err(anyhow::Error::msg)?);
+    if config.props > 1 {
+        let (plate, plate_pose) = scene.clean_plate(renderer)?;
+        let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
+        for _ in 1..config.props {
+            let mut p = ArPipeline::new(
+                renderer,
+                scene.model.clone(),
+                0,
+                CameraModel::pinhole(scene.intrinsics),
+                marker_from_prop(),
+                None,
+                settings,
+            )?;
+            p.set_clean_plate(plate.clone(), plate_pose);
+            pipes.push(p);
+        }
+    }
+
+    bar.set_message("warming up");
+    for f in &frames[..plan.warmup as usize] {
+        run_frame(&mut pipes, renderer, &scene, f)?;
+        bar.inc(1);
+    }
+
+    // The timed loop: no I/O, no measurement.
+    bar.set_message("timing");
+    let rss_start = status_mib("VmRSS");
+    let peak_scope = if reset_peak_rss() {
+        "timed loop"
+    } else {
+        "process"
+    };
+    let mut samples = Vec::with_capacity(plan.frames as usize);
+    let mut outputs = Vec::with_capacity(plan.frames as usize);
+    for f in &frames[plan.warmup as usize..] {
+        let (mut out, sample) = run_frame(&mut pipes, renderer, &scene, f)?;
+        // Keep what the measurement needs (the image and the pose), drop the masks.
+        out.twin_mask = Vec::new();
+        out.key_mask = Vec::new();
+        out.live_codes = Vec::new();
+        outputs.push(out);
+        samples.push(sample);
+        bar.inc(1);
+    }
+    let peak = status_mib("VmHWM");
+    let held_bytes: usize = frames
+        .iter()
+        .map(|f| f.input.rgba8.len() + f.ground_truth.rgba8.len())
+        .sum::<usize>()
+        + outputs.iter().map(|o| o.rgba8.len()).sum::<usize>();
+    drop(pipes);
+
+    // Quality, outside the timed loop.
+    bar.set_message("measuring");
+    let mut psnr = Vec::new();
+    for (f, out) in frames[plan.warmup as usize..].iter().zip(&outputs) {
+        let m = measure(&scene, renderer, f, out).map_err(anyhow::Error::msg)?;
+        psnr.push(m.psnr_prop);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+
+    let col = |f: fn(&Sample) -> f64| stat(samples.iter().map(f).collect());
+    let stages = vec![
+        ("track", col(|s| s.track)),
+        ("animate", col(|s| s.animate)),
+        ("texture", col(|s| s.texture)),
+        ("diminish", col(|s| s.diminish)),
+        ("composite", col(|s| s.composite)),
+        ("readback", col(|s| s.readback)),
+    ];
+    Ok(Row {
+        config,
+        actual_vertices,
+        frames: samples.len(),
+        tracked: samples.iter().filter(|s| s.tracked).count(),
+        stages,
+        gpu_wait: col(|s| s.gpu_wait),
+        end_to_end: col(|s| s.end_to_end),
+        psnr_prop: pa_scene::eval::mean(psnr),
+        peak_rss_mb: peak,
+        rss_start_mb: rss_start,
+        peak_scope,
+        held_mb: held_bytes as f64 / (1024.0 * 1024.0),
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+fn cell(s: Stat) -> String {
+    format!("{:.1} / {:.1}", s.median, s.p95)
+}
+
+fn fps(s: Stat) -> f64 {
+    1000.0 / s.median
+}
+
+fn stat_json(s: Stat) -> Value {
+    json!({"median": s.median, "p95": s.p95})
+}
+
+fn table(rows: &[Row]) -> String {
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "| size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |"
+    );
+    let _ = writeln!(
+        t,
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for r in rows {
+        let c = r.config;
+        let _ = write!(
+            t,
+            "| {}x{} | {} | {} |",
+            c.width, c.height, r.actual_vertices, c.props
+        );
+        for (_, s) in &r.stages {
+            let _ = write!(t, " {} |", cell(*s));
+        }
+        let _ = writeln!(
+            t,
+            " {} | {:.1} | {} | {} | {}/{} |",
+            cell(r.end_to_end),
+            fps(r.end_to_end),
+            r.psnr_prop
+                .map(|p| format!("{p:.2}"))
+                .unwrap_or_else(|| "-".into()),
+            r.peak_rss_mb
+                .map(|m| format!("{m:.0}"))
+                .unwrap_or_else(|| "n/a".into()),
+            r.tracked,
+            r.frames
+        );
+    }
+    t
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let started = Instant::now();
+    let plan = plan(args)?;
+    if let Some(dir) = plan.json.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let mut renderer = Renderer::new()?;
+    let adapter = renderer.adapter_info();
+    let backend = format!("{:?}", renderer.backend());
+    let (cpu, cores) = cpu_description();
+    let load_start = load_average();
+    eprintln!(
+        "renderer: {adapter}\n{} configurations, {} warm-up + {} timed frames each",
+        plan.configs.len(),
+        plan.warmup,
+        plan.frames
+    );
+    let mut rows = Vec::new();
+    for (k, &c) in plan.configs.iter().enumerate() {
+        let label = format!(
+            "[{}/{}] {}x{}, {} vertices, {} prop{}",
+            k + 1,
+            plan.configs.len(),
+            c.width,
+            c.height,
+            c.vertices,
+            c.props,
+            if c.props == 1 { "" } else { "s" }
+        );
+        let row = run_config(&mut renderer, &plan, c, &label)
+            .with_context(|| format!("configuration {label}"))?;
+        eprintln!(
+            "{label}: {:.1} ms end-to-end median, {:.1} fps ({:.0} s)",
+            row.end_to_end.median,
+            fps(row.end_to_end),
+            row.seconds
+        );
+        rows.push(row);
+    }
+    let total_s = started.elapsed().as_secs_f64();
+    let load_end = load_average();
+    let load = |l: Option<f64>| l.map_or_else(|| "n/a".to_string(), |l| format!("{l:.2}"));
+
+    let props_meaning = "N props = N independent ArPipelines on the same frame: the first \
+                         tracks the marker (process), the other N-1 reuse its tracked pose \
+                         (process_with_pose); track is paid once a frame, every other stage N \
+                         times; PSNR is of the first prop's output";
+    let readback_meaning = "readback = mapping GPU results and copying them to CPU memory \
+                            (unpad, depth decode), taken out of texture; texture includes \
+                            waiting for the GPU (gpu_wait), which on a software rasteriser is \
+                            the rasterisation itself";
+    let mut out = String::new();
+    let _ = writeln!(out, "# propsalive bench\n");
+    let _ = writeln!(out, "- adapter: {adapter}");
+    let _ = writeln!(out, "- backend: {backend}");
+    let _ = writeln!(
+        out,
+        "- CPU: {cpu}, {cores} cores available; 1-minute load average {} at the start, {} at \
+         the end (other work on the machine slows a software rasteriser a lot)",
+        load(load_start),
+        load(load_end)
+    );
+    let _ = writeln!(out, "- method: {}", plan.method.describe());
+    let _ = writeln!(
+        out,
+        "- frames: {} timed after {} warm-up per configuration; times in ms, median / p95; \
+         fps = 1000 / median end-to-end",
+        plan.frames, plan.warmup
+    );
+    let _ = writeln!(out, "- {props_meaning}");
+    let _ = writeln!(out, "- {readback_meaning}");
+    let _ = writeln!(
+        out,
+        "- peak RSS: the process's high-water mark during the timed loop, including the frames \
+         the bench holds (input, ground truth, output)\n"
+    );
+    out.push_str(&table(&rows));
+
+    let json_rows: Vec<Value> = rows
+        .iter()
+        .map(|r| {
+            let stages: serde_json::Map<String, Value> = r
+                .stages
+                .iter()
+                .map(|(n, s)| (n.to_string(), stat_json(*s)))
+                .collect();
+            json!({
+                "width": r.config.width,
+                "height": r.config.height,
+                "requested_vertices": r.config.vertices,
+                "vertices": r.actual_vertices,
+                "props": r.config.props,
+                "frames": r.frames,
+                "tracked_frames": r.tracked,
+                "stages_ms": stages,
+                "gpu_wait_ms": stat_json(r.gpu_wait),
+                "end_to_end_ms": stat_json(r.end_to_end),
+                "fps": fps(r.end_to_end),
+                "prop_psnr_db": r.psnr_prop,
+                "peak_rss_mib": r.peak_rss_mb,
+                "rss_before_timed_loop_mib": r.rss_start_mb,
+                "peak_rss_scope": r.peak_scope,
+                "held_frames_mib": r.held_mb,
+                "seconds": r.seconds,
+            })
+        })
+        .collect();
+    let doc = json!({
+        "adapter": adapter,
+        "backend": backend,
+        "cpu": cpu,
+        "cores": cores,
+        "load_average_start": load_start,
+        "load_average_end": load_end,
+        "method": plan.method.describe(),
+        "frames": plan.frames,
+        "warmup": plan.warmup,
+        "seed": plan.seed,
+        "stages": STAGES,
+        "props_meaning": props_meaning,
+        "readback_meaning": readback_meaning,
+        "total_seconds": total_s,
+        "configs": json_rows,
+    });
+    pa_model::export::write_atomic(&plan.json, serde_json::to_string_pretty(&doc)?.as_bytes())
+        .with_context(|| format!("writing {}", plan.json.display()))?;
+    print!("{out}");
+    println!("\nwrote {} ({:.0} s in all)", plan.json.display(), total_s);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axes_vary_one_thing_at_a_time() {
+        let c = axes(
+            &[(640, 480), (1280, 720), (1920, 1080)],
+            &[2_000, 8_000, 32_000, 128_000],
+            &[1, 4, 16],
+        );
+        assert_eq!(c.len(), 8);
+        assert!(c.iter().all(|c| {
+            let base = [
+                (c.width, c.height) == (1280, 720),
+                c.vertices == 8_000,
+                c.props == 1,
+            ];
+            base.iter().filter(|b| !**b).count() <= 1
+        }));
+        let one = axes(&[(160, 120)], &[2_000], &[1, 2]);
+        assert_eq!(one.len(), 2);
+    }
+
+    #[test]
+    fn percentiles() {
+        let s = stat((1..=20).map(f64::from).collect());
+        assert_eq!(s.median, 10.5);
+        assert_eq!(s.p95, 19.0);
+        let s = stat(vec![3.0]);
+        assert_eq!((s.median, s.p95), (3.0, 3.0));
+        assert!(stat(Vec::new()).median.is_nan());
+    }
+}

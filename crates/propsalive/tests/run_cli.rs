@@ -1,0 +1,462 @@
+//! `propsalive run` (stop-motion mode) end to end on a small generated take: the real binary,
+//! killed and resumed, bad stills, foreign frames, re-shot stills.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::{Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+use pa_scene::prop::PropSpec;
+use pa_scene::scene::{marker_from_prop, set_board};
+use pa_scene::{Scene, SceneSpec};
+
+const STILLS: u32 = 10;
+const W: u32 = 320;
+const H: u32 = 180;
+
+/// A generated take: stills (named s1.png .. s10.png, so natural order matters), a shot file
+/// and the reference outputs of an uninterrupted run.
+struct Take {
+    root: PathBuf,
+    stills: PathBuf,
+    shot: PathBuf,
+    reference: PathBuf,
+}
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_propsalive")
+}
+
+/// Tests run one at a time (each runs the renderer; the kill test needs the machine).
+fn lock() -> std::sync::MutexGuard<'static, ()> {
+    static L: Mutex<()> = Mutex::new(());
+    L.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn take() -> Option<&'static Take> {
+    static T: OnceLock<Option<Take>> = OnceLock::new();
+    T.get_or_init(make_take).as_ref()
+}
+
+fn make_take() -> Option<Take> {
+    let mut renderer = match pa_render::Renderer::new() {
+        Ok(r) => r,
+        Err(e) => {
+            println!("skipped: no renderer ({e})");
+            return None;
+        }
+    };
+    // Takes of earlier test runs older than an hour are removed.
+    let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    for e in std::fs::read_dir(tmp).into_iter().flatten().flatten() {
+        let old = e
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age > Duration::from_secs(3600));
+        if old && e.file_name().to_string_lossy().starts_with("run_cli_") {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+    let root = tmp.join(format!("run_cli_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let stills = root.join("stills");
+    std::fs::create_dir_all(&stills).expect("mkdir");
+    let spec = SceneSpec {
+        width: W,
+        height: H,
+        frames: STILLS,
+        ..SceneSpec::default()
+    };
+    let scene = Scene::new(spec.clone(), &mut renderer).expect("scene");
+    for i in 0..STILLS {
+        let f = scene.frame(&mut renderer, i).expect("frame");
+        let img = image::RgbaImage::from_raw(W, H, f.input.rgba8).expect("size");
+        img.save(stills.join(format!("s{}.png", i + 1)))
+            .expect("save");
+    }
+    let glb = pa_scene::prop_glb(&PropSpec::default()).expect("glb");
+    std::fs::write(root.join("prop.glb"), glb).expect("write glb");
+    // The shot matching the scene: the board's tags, the upright placement, the scene's FOV.
+    let m = marker_from_prop();
+    assert!((m.transform_vector3(glam::Vec3::Y) - glam::Vec3::NEG_Z).length() < 1e-6);
+    let mut shot = format!(
+        "model = \"prop.glb\"\nanimation = \"Animate\"\nfps = {}\npresent_key = \"A\"\n\n\
+         [[key_poses]]\nname = \"A\"\nframe = 0\n\n[camera]\nfov_y_deg = {}\n\n\
+         [placement]\nupright = true\nyaw_deg = 0.0\n\n[marker]\nfamily = \"tag36h11\"\n",
+        spec.fps, spec.fov_y_deg
+    );
+    for t in set_board().tags {
+        shot.push_str(&format!(
+            "[[marker.tags]]\nid = {}\ncenter_m = [{}, {}]\nsize_m = {}\n",
+            t.id, t.center_m.x, t.center_m.y, t.size_m
+        ));
+    }
+    let shot_path = root.join("shot.toml");
+    std::fs::write(&shot_path, shot).expect("write shot");
+    drop(renderer);
+
+    let reference = root.join("reference");
+    let out = run(&shot_path, &stills, &reference, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    Some(Take {
+        root,
+        stills,
+        shot: shot_path,
+        reference,
+    })
+}
+
+fn command(shot: &Path, input: &Path, out: &Path, extra: &[&str]) -> Command {
+    let mut c = Command::new(bin());
+    c.arg("run")
+        .arg(shot)
+        .arg("--input")
+        .arg(input)
+        .arg("--out")
+        .arg(out)
+        .args(extra);
+    c
+}
+
+fn run(shot: &Path, input: &Path, out: &Path, extra: &[&str]) -> Output {
+    command(shot, input, out, extra).output().expect("runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The frames of a take: name -> bytes (hidden temporary files included, to catch leftovers).
+fn frames(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut m = BTreeMap::new();
+    if let Ok(rd) = std::fs::read_dir(dir.join("frames")) {
+        for e in rd.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            m.insert(name, std::fs::read(e.path()).expect("read frame"));
+        }
+    }
+    m
+}
+
+/// The log's lines, parsed; panics on a duplicate index or an unparsable line.
+fn log(dir: &Path) -> BTreeMap<u64, serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join("log.jsonl")).expect("log");
+    let mut m = BTreeMap::new();
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).expect("json line");
+        let i = v["index"].as_u64().expect("index");
+        assert!(m.insert(i, v).is_none(), "duplicate log line for index {i}");
+    }
+    m
+}
+
+/// Copies the stills to a fresh folder for editing.
+fn copy_stills(take: &Take, name: &str) -> PathBuf {
+    let dir = take.root.join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    for e in std::fs::read_dir(&take.stills).expect("stills").flatten() {
+        std::fs::copy(e.path(), dir.join(e.file_name())).expect("copy");
+    }
+    dir
+}
+
+#[test]
+fn uninterrupted_take_is_complete_and_tracked() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let f = frames(&take.reference);
+    let names: Vec<_> = f.keys().cloned().collect();
+    let expected: Vec<_> = (0..STILLS).map(|i| format!("{i:06}.png")).collect();
+    assert_eq!(names, expected);
+    let l = log(&take.reference);
+    assert_eq!(l.len(), STILLS as usize);
+    for (i, v) in &l {
+        // Natural order: still i is s{i+1}.png (s10 after s9).
+        assert_eq!(v["input"], format!("s{}.png", i + 1));
+        assert_eq!(v["anim_frame"], *i);
+        assert_eq!(v["key_pose"], "A");
+        assert!(v["skipped"].is_null());
+        assert!(v["timings_ms"]["track"].as_f64().is_some());
+    }
+    let tracked = l.values().filter(|v| v["state"] == "tracked").count();
+    assert!(tracked >= 1, "no still tracked: {l:?}");
+    for v in l.values().filter(|v| v["state"] == "tracked") {
+        assert_eq!(
+            v["camera_from_marker"].as_array().map(|a| a.len()),
+            Some(16)
+        );
+    }
+    // A tracked frame is not the untouched still (the prop was replaced by the twin).
+    let (i, _) = l
+        .iter()
+        .find(|(_, v)| v["state"] == "tracked")
+        .expect("tracked");
+    let out = image::open(take.reference.join(format!("frames/{i:06}.png")))
+        .expect("frame")
+        .to_rgba8();
+    let input = image::open(take.stills.join(format!("s{}.png", i + 1)))
+        .expect("still")
+        .to_rgba8();
+    assert_ne!(out.as_raw(), input.as_raw());
+    println!("{tracked}/{STILLS} stills tracked");
+
+    // Running the finished take again does nothing and says so.
+    let again = run(&take.shot, &take.stills, &take.reference, &[]);
+    assert!(again.status.success(), "{}", stderr(&again));
+    assert!(
+        stderr(&again).contains(&format!("0 processed, {STILLS} resumed")),
+        "{}",
+        stderr(&again)
+    );
+    assert_eq!(frames(&take.reference), f);
+}
+
+#[test]
+fn killed_take_resumes_identical_to_uninterrupted() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let reference = frames(&take.reference);
+    let ref_log = log(&take.reference);
+    let mut killed_after = Vec::new();
+    // Kill at arbitrary moments (during start-up, perhaps between a log line and its frame),
+    // then twice once two more frames exist, then finish.
+    let out = take.root.join("killed");
+    let _ = std::fs::remove_dir_all(&out);
+    let count = |out: &Path| frames(out).keys().filter(|k| !k.starts_with('.')).count();
+    for (ms, more) in [(40u64, 0usize), (250, 0), (0, 2), (0, 2)] {
+        let want = count(&out) + more;
+        let mut child = command(&take.shot, &take.stills, &out, &[])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn");
+        let t0 = Instant::now();
+        std::thread::sleep(Duration::from_millis(ms));
+        while more > 0 && count(&out) < want && t0.elapsed() < Duration::from_secs(300) {
+            if child.try_wait().expect("wait").is_some() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let finished = child.try_wait().expect("wait").is_some();
+        child.kill().ok();
+        child.wait().expect("reaped");
+        killed_after.push((count(&out), finished));
+    }
+    println!("killed with (frames, had finished) = {killed_after:?}");
+    assert!(
+        killed_after
+            .iter()
+            .any(|(n, fin)| !fin && *n < STILLS as usize),
+        "the run was never killed mid-take: {killed_after:?}"
+    );
+    let o = run(&take.shot, &take.stills, &out, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("resum"), "{e}");
+    println!("{}", e.lines().last().unwrap_or_default());
+    // Every frame exactly once (no temporary files left), byte-identical to the reference.
+    let got = frames(&out);
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        reference.keys().collect::<Vec<_>>()
+    );
+    for (name, bytes) in &reference {
+        assert!(
+            got[name] == *bytes,
+            "{name} differs from the uninterrupted run"
+        );
+    }
+    // One log line per index, with the same tracking results.
+    let l = log(&out);
+    assert_eq!(
+        l.keys().collect::<Vec<_>>(),
+        ref_log.keys().collect::<Vec<_>>()
+    );
+    for (i, v) in &l {
+        for k in [
+            "input",
+            "anim_frame",
+            "state",
+            "camera_from_marker",
+            "reprojection_px",
+            "output",
+        ] {
+            assert_eq!(v[k], ref_log[i][k], "index {i}, {k}");
+        }
+    }
+}
+
+#[test]
+fn unreadable_still_is_skipped_and_logged() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let stills = copy_stills(take, "stills_bad");
+    std::fs::write(stills.join("s4.png"), b"this is not a png at all").expect("garbage");
+    let out = take.root.join("out_bad");
+    let _ = std::fs::remove_dir_all(&out);
+    let o = run(&take.shot, &stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("skipping still 3 (s4.png)") && e.contains("warning: 1 still(s) have no frame"),
+        "{e}"
+    );
+    let l = log(&out);
+    assert_eq!(l.len(), STILLS as usize);
+    assert!(
+        l[&3]["skipped"]
+            .as_str()
+            .is_some_and(|s| s.starts_with("unreadable")),
+        "{:?}",
+        l[&3]
+    );
+    assert!(l[&3]["output"].is_null());
+    let f = frames(&out);
+    let reference = frames(&take.reference);
+    assert!(!f.contains_key("000003.png"));
+    assert_eq!(f.len(), STILLS as usize - 1);
+    for (name, bytes) in &f {
+        assert!(reference[name] == *bytes, "{name}");
+    }
+    // The skipped still stays skipped on a resume; fixing it renders just that frame.
+    let o = run(&take.shot, &stills, &out, &[]);
+    assert!(stderr(&o).contains("0 processed"), "{}", stderr(&o));
+    std::fs::copy(take.stills.join("s4.png"), stills.join("s4.png")).expect("fix");
+    let o = run(&take.shot, &stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success() && e.contains("1 processed"), "{e}");
+    assert_eq!(frames(&out), reference);
+    assert_eq!(log(&out).len(), STILLS as usize);
+}
+
+#[test]
+fn still_of_another_size_is_skipped_and_logged() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let stills = copy_stills(take, "stills_mixed");
+    let small = image::open(stills.join("s6.png"))
+        .expect("still")
+        .resize_exact(W / 2, H / 2, image::imageops::FilterType::Triangle);
+    small.save(stills.join("s6.png")).expect("save");
+    let out = take.root.join("out_mixed");
+    let _ = std::fs::remove_dir_all(&out);
+    let o = run(&take.shot, &stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("skipping still 5 (s6.png): 160x90 but the take is 320x180"),
+        "{e}"
+    );
+    let l = log(&out);
+    assert!(
+        l[&5]["skipped"]
+            .as_str()
+            .is_some_and(|s| s.starts_with("wrong size")),
+        "{:?}",
+        l[&5]
+    );
+    let f = frames(&out);
+    assert!(!f.contains_key("000005.png") && f.len() == STILLS as usize - 1);
+}
+
+#[test]
+fn foreign_frames_are_refused_without_force_and_reshot_stills_replaced() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let out = take.root.join("out_foreign");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(out.join("frames")).expect("mkdir");
+    std::fs::write(out.join("frames/000000.png"), b"another take").expect("write");
+    let o = run(&take.shot, &take.stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("000000.png") && e.contains("Refusing to overwrite") && e.contains("--force"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("frames/000000.png")).expect("kept"),
+        b"another take"
+    );
+    let o = run(&take.shot, &take.stills, &out, &["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(frames(&out), frames(&take.reference));
+
+    // Re-shoot still 2 (s3.png): only its frame is rendered again, and stderr says so.
+    let stills = copy_stills(take, "stills_reshot");
+    let out = take.root.join("out_reshot");
+    let _ = std::fs::remove_dir_all(&out);
+    assert!(run(&take.shot, &stills, &out, &[]).status.success());
+    let before = frames(&out);
+    std::fs::copy(take.stills.join("s8.png"), stills.join("s3.png")).expect("reshoot");
+    let o = run(&take.shot, &stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("re-shot: frame 2 replaced") && e.contains("1 processed"),
+        "{e}"
+    );
+    let after = frames(&out);
+    assert_ne!(after["000002.png"], before["000002.png"]);
+    for (name, bytes) in &before {
+        if name != "000002.png" {
+            assert!(after[name] == *bytes, "{name}");
+        }
+    }
+    assert_eq!(log(&out).len(), STILLS as usize);
+
+    // 16-bit output: same frame count, 16-bit PNGs.
+    let out16 = take.root.join("out16");
+    let _ = std::fs::remove_dir_all(&out16);
+    let o = run(
+        &take.shot,
+        &take.stills,
+        &out16,
+        &["--bit-depth", "16", "--exposure", "2"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(out16.join("frames/000003.png")).expect("16-bit frame");
+    assert!(matches!(img, image::DynamicImage::ImageRgba16(_)));
+    assert_eq!(log(&out16)[&3]["anim_frame"], 1);
+    // Changing settings on an existing take is refused.
+    let o = run(&take.shot, &take.stills, &out16, &["--bit-depth", "8"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("another exposure, bit depth"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn leftovers_of_a_crash_are_repaired() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    // A take killed between a log line and its frame, in the middle of a log line, and in the
+    // middle of writing a frame's temporary file.
+    let out = take.root.join("out_crash");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(out.join("frames")).expect("mkdir");
+    for (name, bytes) in frames(&take.reference) {
+        if name != "000004.png" {
+            std::fs::write(out.join("frames").join(name), bytes).expect("copy");
+        }
+    }
+    let mut text = std::fs::read_to_string(take.reference.join("log.jsonl")).expect("log");
+    text.push_str("{\"index\":4,\"inp");
+    std::fs::write(out.join("log.jsonl"), text).expect("log");
+    std::fs::write(out.join("frames/.000004.png.tmp-999999"), b"half a png").expect("tmp");
+    let o = run(&take.shot, &take.stills, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("truncated last line") && e.contains("1 processed"),
+        "{e}"
+    );
+    assert_eq!(frames(&out), frames(&take.reference));
+    assert_eq!(log(&out).len(), STILLS as usize);
+}
