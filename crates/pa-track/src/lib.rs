@@ -9,14 +9,15 @@
 //!
 //! # Detection modes and recall
 //!
-//! [`DetectorConfig::default`]: decimation 1 with edge refinement plus a merged pass at
-//! decimation 2, and a quarter-resolution fallback pass when nothing is found (tags that fill
-//! a large frame). [`DetectorConfig::thorough`] adds a pass on the frame upsampled 2x
-//! (bilinear, pixel-centre aligned; corners mapped back by `x = (u + 0.5) / 2 - 0.5`), for
-//! small (10-35 px), strongly tilted tags; it costs several times a normal pass. On the
-//! conformance photos (47 tags, C library reference): `c_reference()` 37/47 with 0.099 px
-//! median corner difference, `c_reference().thorough()` 42/47 (0.114 px), `default()` 40/47,
-//! `default().thorough()` 44/47.
+//! [`DetectorConfig::default`]: quad search at decimation 1 plus a merged pass at decimation 2
+//! (for strongly defocused tags; its quads are edge-refined at full resolution), and a
+//! quarter-resolution fallback pass when nothing is found (tags that fill a large frame).
+//! [`DetectorConfig::thorough`] adds a pass on the frame upsampled 2x (bilinear, pixel-centre
+//! aligned; corners mapped back by `x = (u + 0.5) / 2 - 0.5`) for very small tags; it costs
+//! several times a normal pass. The quad fit and decoding are our own implementation of the
+//! AprilTag 3 algorithm (`kornia-apriltag` supplies the family code tables). On the
+//! conformance photos (47 tags, C library reference, JPEG luma): `default()` and
+//! `c_reference()` both find 47/47 with a median corner difference of 0.0003 px.
 //!
 //! # Conventions
 //!
@@ -50,6 +51,8 @@ pub mod detect;
 pub mod filter;
 pub mod marker;
 pub mod pose;
+mod quad;
+mod segment;
 pub mod tracker;
 
 pub use board::Board;

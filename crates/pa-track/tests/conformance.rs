@@ -39,6 +39,15 @@ fn parse_reference(text: &str) -> Vec<(u32, [DVec2; 4])> {
         .collect()
 }
 
+/// The photo's luma. The reference detections were made on the JPEG's own luma plane (the
+/// C library's test decodes it with `pjpeg_to_u8_baseline`), i.e. Rec. 601 weights, which is
+/// what `GrayImage::from` computes from the decoded RGB (to within a grey level of rounding).
+/// `image`'s `to_luma8` uses Rec. 709 weights instead: the grey levels of the coloured
+/// surroundings differ, and with them a few binarisation boundaries (46/47 tags, 0.0014 px).
+fn photo_luma(jpg: &std::path::Path) -> GrayImage {
+    GrayImage::from(&image::open(jpg).expect("decodable photo"))
+}
+
 /// The documented conversion: C corners -> ours. Position -0.5 px; order: the C library's
 /// [p0, p1, p2, p3] (from the detection's homography at tag coordinates (-1,1), (1,1),
 /// (1,-1), (-1,-1)) are the printed tag's [BL, BR, TR, TL]; OpenCV order is TL, TR, BR, BL.
@@ -62,8 +71,7 @@ fn run_photos(config: DetectorConfig) -> Option<(usize, usize, f64, Vec<[usize; 
         let refs = parse_reference(
             &std::fs::read_to_string(jpg.with_extension("txt")).expect("reference file"),
         );
-        let img = image::open(&jpg).expect("decodable photo");
-        let gray = GrayImage::from(&image::DynamicImage::ImageLuma8(img.to_luma8()));
+        let gray = photo_luma(&jpg);
         let dets = det.detect(&gray).expect("detects");
         for (id, c) in refs {
             total += 1;
@@ -100,6 +108,14 @@ fn run_photos(config: DetectorConfig) -> Option<(usize, usize, f64, Vec<[usize; 
     Some((found, total, median, orders))
 }
 
+/// Tags (of 47) every mode must find, and the bound on the median corner difference from
+/// the C library's detections. Measured: 47/47 and 0.0003 px in every mode (the quad fit
+/// follows the C library's `fit_quad`; the remaining differences, up to 0.3 px on a few
+/// corners, come from grey levels a unit apart here and there: another JPEG decoder, and
+/// luma recomputed from RGB).
+const FOUND_FLOOR: usize = 46;
+const MEDIAN_BOUND_PX: f64 = 0.01;
+
 #[test]
 fn swarmathon_photos_match_c_library() {
     // Settings of the reference (quad_decimate 1, refine_edges off).
@@ -111,17 +127,22 @@ fn swarmathon_photos_match_c_library() {
     // The corner order is one fixed mapping for every tag.
     assert!(orders.iter().all(|o| *o == orders[0]), "{orders:?}");
     println!("C order -> ours: ours[i] = c[{:?}[i]] - 0.5", orders[0]);
-    // kornia-apriltag 0.2 misses small, strongly tilted tags that the C library finds
-    // (see the crate README / report); the corners it finds agree to 0.1 px.
-    assert!(found >= 36, "found {found}/{total}");
-    assert!(median <= 0.1, "median {median}");
+    assert!(
+        found >= FOUND_FLOOR && median <= MEDIAN_BOUND_PX,
+        "c_reference: found {found}/{total} (want >= {FOUND_FLOOR}), median corner difference \
+         {median:.4} px (want <= {MEDIAN_BOUND_PX})"
+    );
 
-    // Default settings (edge refinement on): more tags found.
+    // Default settings: the same full-resolution quads (the second pass only adds tags the
+    // first one misses, none here).
     let (found, total, median, _) =
         run_photos(DetectorConfig::default()).expect("data present above");
     println!("default settings: found {found}/{total}, median corner error {median:.4} px");
-    assert!(found >= 40, "found {found}/{total}");
-    assert!(median <= 0.5, "median {median}");
+    assert!(
+        found >= FOUND_FLOOR && median <= MEDIAN_BOUND_PX,
+        "default: found {found}/{total} (want >= {FOUND_FLOOR}), median corner difference \
+         {median:.4} px (want <= {MEDIAN_BOUND_PX})"
+    );
 }
 
 #[test]
@@ -133,15 +154,19 @@ fn swarmathon_photos_thorough_mode_recall() {
     };
     println!("c_reference + thorough: found {found}/{total}, median corner error {median:.4} px");
     assert!(orders.iter().all(|o| *o == [3, 2, 1, 0]), "{orders:?}");
-    assert!(found >= THOROUGH_FLOOR, "found {found}/{total}");
-    // The tags only the upsampled pass finds are 10-28 px and strongly tilted; their corners
-    // differ from the C library's by 0.2-0.8 px with no common bias (both pipelines are
-    // noisy there), which lifts the median over all matched tags slightly above 0.1 px.
-    assert!(median <= 0.12, "median {median}");
+    assert!(
+        found >= FOUND_FLOOR && median <= MEDIAN_BOUND_PX,
+        "c_reference + thorough: found {found}/{total} (want >= {FOUND_FLOOR}), median \
+         {median:.4} px (want <= {MEDIAN_BOUND_PX})"
+    );
     let (found, total, median, _) =
         run_photos(DetectorConfig::default().thorough()).expect("data present above");
     println!("default + thorough: found {found}/{total}, median corner error {median:.4} px");
-    assert!(found >= 44, "found {found}/{total}");
+    assert!(
+        found >= FOUND_FLOOR && median <= MEDIAN_BOUND_PX,
+        "default + thorough: found {found}/{total} (want >= {FOUND_FLOOR}), median \
+         {median:.4} px (want <= {MEDIAN_BOUND_PX})"
+    );
     for diff in [10u8, 20, 30] {
         let (found, total, median, _) = run_photos(DetectorConfig {
             min_white_black_diff: diff,
@@ -152,11 +177,7 @@ fn swarmathon_photos_thorough_mode_recall() {
             "default, min_white_black_diff {diff}: found {found}/{total}, median {median:.4} px"
         );
     }
-    assert!(median <= 0.5, "median {median}");
 }
-
-/// Tags found (of 47) by the thorough mode.
-const THOROUGH_FLOOR: usize = 42;
 
 /// `corners` of each detection in an `*.opencv_aruco_apriltag36h11.json` file (OpenCV pixel
 /// centres, ArUco order).
@@ -226,8 +247,7 @@ fn corner_order_matches_c_library_and_opencv_aruco() {
         let mut cv_path = jpg.clone().into_os_string();
         cv_path.push(".opencv_aruco_apriltag36h11.json");
         let cv = parse_opencv(std::path::Path::new(&cv_path));
-        let img = image::open(&jpg).expect("decodable photo");
-        let gray = GrayImage::from(&image::DynamicImage::ImageLuma8(img.to_luma8()));
+        let gray = photo_luma(&jpg);
         let ours = det.detect(&gray).expect("detects");
         let centre = |c: &[DVec2; 4]| (c[0] + c[1] + c[2] + c[3]) * 0.25;
         for o in &cv {
@@ -300,8 +320,9 @@ fn canonical_tags_decode_with_orientation_and_position() {
         for i in 0..4 {
             let e = d.corners_px[i].distance(want[i]);
             worst = worst.max(e);
+            // Measured 0.010 px (0.297 px when full-resolution quads were edge-refined too).
             assert!(
-                e < 0.4,
+                e < 0.1,
                 "id {id} corner {i}: {} vs {}",
                 d.corners_px[i],
                 want[i]
@@ -337,5 +358,5 @@ fn canonical_tags_decode_with_orientation_and_position() {
         checked += 1;
     }
     assert_eq!(checked, 21);
-    println!("canonical tags: worst corner error {worst:.3} px (edge refinement), {worst_ref:.3} px (c_reference)");
+    println!("canonical tags: worst corner error {worst:.3} px (default), {worst_ref:.3} px (c_reference)");
 }

@@ -12,7 +12,7 @@ const CURVE_METHODS: [&str; 3] = [
 ];
 
 /// Every method (the categories of the method chart).
-const ALL_METHODS: [&str; 7] = [
+const ALL_METHODS: [&str; 9] = [
     "paper (live, no visibility, rectangle fill)",
     "live + visibility, rectangle fill",
     "live, no visibility, ray fill",
@@ -20,6 +20,8 @@ const ALL_METHODS: [&str; 7] = [
     "ours with clean plate",
     "model texture (no live sampling), ray fill",
     "ours, two key poses (frames 0 and 24)",
+    "tripod camera: paper",
+    "tripod camera: ours",
 ];
 
 fn read(path: &std::path::Path) -> String {

@@ -39,6 +39,7 @@ struct Method {
     name: &'static str,
     settings: ArSettings,
     key_frames: Vec<u32>,
+    camera_path: CameraPath,
 }
 
 fn methods() -> Vec<Method> {
@@ -48,6 +49,7 @@ fn methods() -> Vec<Method> {
             name: "paper (live, no visibility, rectangle fill)",
             settings: ArSettings::paper(),
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "live + visibility, rectangle fill",
@@ -56,6 +58,7 @@ fn methods() -> Vec<Method> {
                 ..ours
             },
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "live, no visibility, ray fill",
@@ -64,11 +67,13 @@ fn methods() -> Vec<Method> {
                 ..ours
             },
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "ours: live + visibility, ray fill",
             settings: ours,
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "ours with clean plate",
@@ -77,6 +82,7 @@ fn methods() -> Vec<Method> {
                 ..ours
             },
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "model texture (no live sampling), ray fill",
@@ -85,11 +91,25 @@ fn methods() -> Vec<Method> {
                 ..ours
             },
             key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
         },
         Method {
             name: "ours, two key poses (frames 0 and 24)",
             settings: ours,
             key_frames: vec![0, 24],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "tripod camera: paper",
+            settings: ArSettings::paper(),
+            key_frames: vec![0],
+            camera_path: CameraPath::Static,
+        },
+        Method {
+            name: "tripod camera: ours",
+            settings: ours,
+            key_frames: vec![0],
+            camera_path: CameraPath::Static,
         },
     ]
 }
@@ -305,7 +325,7 @@ pub fn run(args: Args) -> Result<()> {
                     width: w,
                     height: h,
                     background,
-                    camera_path: CameraPath::Handheld,
+                    camera_path: m.camera_path,
                     key_frames: m.key_frames.clone(),
                     ..SceneSpec::default()
                 };
@@ -463,7 +483,8 @@ pub fn run(args: Args) -> Result<()> {
                    each drawn at the mean distance of its frames.*";
     let report = format!(
         "# Props Alive evaluation\n\nGenerated scenes at {w}x{h}, seeds {:?}, {} frames each, \
-         real tracker, ground truth = the in-between rendered as if printed.\n\n## Methods\n\n{table}\n\
+         real tracker, handheld camera unless a row says \"tripod\", ground truth = the in-between \
+         rendered as if printed.\n\n## Methods\n\n{table}\n\
          ![Prop and revealed-background PSNR per method and background](methods.svg)\n\n\
          *Mean PSNR per method and background; the paper's method (shaded, dashed lines) is the \
          baseline.*\n\n\
