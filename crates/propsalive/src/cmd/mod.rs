@@ -1,6 +1,7 @@
 //! One module per subcommand; each has `Args` (raw flags) and `run`.
 
 pub mod bench;
+pub mod camera_export;
 pub mod demo;
 pub mod eval;
 pub mod export;

@@ -13,6 +13,9 @@
 //!   diminish, composite, encode), `output` (`frames/NNNNNN.png`, or null), `skipped` (the
 //!   reason a still was not rendered, or null), and the take's settings (`exposure`,
 //!   `bit_depth`, `shot_hash`). Each line is appended and fsynced before its frame is written.
+//! - `camera.gltf`: the tracked camera of every still of the take with a pose in the log, as
+//!   an animated glTF 2.0 camera (see `camera_export`), rewritten atomically at the end of
+//!   each run; not written (a note says so) when no still was tracked.
 //!
 //! Decisions:
 //! - **Every still is independent.** The tracker is reset before each still, runs without
@@ -704,5 +707,43 @@ pub fn run(args: Args) -> Result<()> {
             log_path.display()
         );
     }
+    export_camera(&args.out, &entries, n, &cfg)
+}
+
+/// Writes `camera.gltf` from the log's poses of stills `0..n` (a resumed run exports the whole
+/// take). No pose at all is a note, not an error: the frames are there.
+fn export_camera(
+    out: &Path,
+    entries: &BTreeMap<usize, Entry>,
+    n: usize,
+    cfg: &Config,
+) -> Result<()> {
+    let poses: Vec<(usize, Option<glam::Mat4>)> = entries
+        .values()
+        .filter(|e| e.index < n)
+        .map(|e| {
+            let pose = e
+                .camera_from_marker
+                .as_deref()
+                .filter(|m| m.len() == 16)
+                .map(glam::Mat4::from_cols_slice);
+            (e.index, pose)
+        })
+        .collect();
+    if !poses.iter().any(|(_, p)| p.is_some()) {
+        eprintln!("note: no still of the take was tracked: no camera.gltf written");
+        return Ok(());
+    }
+    let doc = super::camera_export::camera_gltf(&poses, &cfg.camera.intrinsics, cfg.fps)?;
+    let path = out.join("camera.gltf");
+    pa_model::export::write_atomic(&path, doc.json.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
+    sync_dir(&path);
+    eprintln!(
+        "camera: {} tracked still(s) exported to {} (glTF 2.0, Y-up, {} fps)",
+        doc.keys,
+        path.display(),
+        cfg.fps
+    );
     Ok(())
 }
