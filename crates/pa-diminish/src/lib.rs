@@ -169,7 +169,7 @@ impl Diminisher {
                     cp,
                     &mut self.plate,
                 )?;
-                let interpolated = if self.to_fill.iter().any(|&v| v != 0) {
+                let interpolated = if self.to_fill.contains(&ray_fill::FILL) {
                     ray_fill::ray_fill_region(
                         frame,
                         bbox,

@@ -152,7 +152,11 @@ pub(crate) fn extract_into(mask: &Mask, region: Rect, local: &mut Vec<u8>) {
     let data = mask.as_slice();
     for y in region.y as usize..region.bottom() as usize {
         let row = &data[y * w + region.x as usize..y * w + region.right() as usize];
-        local.extend(row.iter().map(|&v| u8::from(v != 0)));
+        local.extend(row.iter().map(|&v| match v {
+            0 => 0,
+            Mask::HIDDEN => crate::ray_fill::PASS,
+            _ => crate::ray_fill::FILL,
+        }));
     }
 }
 

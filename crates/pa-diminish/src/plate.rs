@@ -431,7 +431,7 @@ pub(crate) fn plate_fill_region(
     for (ly, row) in to_fill.chunks_exact_mut(rw).enumerate() {
         let y = region.y as usize + ly;
         for (lx, t) in row.iter_mut().enumerate() {
-            if *t == 0 {
+            if *t != crate::ray_fill::FILL {
                 continue;
             }
             let x = region.x as usize + lx;

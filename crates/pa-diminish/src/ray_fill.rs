@@ -63,19 +63,36 @@ impl RayDirections {
 /// Reusable buffers of the ray fill.
 #[derive(Debug, Default, Clone)]
 pub(crate) struct RayScratch {
-    steps: Vec<u32>,
-    acc: Vec<[f32; 4]>,
+    /// One per half of the directions (the halves run on two threads).
+    lanes: [Lane; 2],
     /// Per local row, the first and last pixel to fill (`first > last`: none).
     spans: Vec<(usize, usize)>,
     /// `recip[k] = 1 / k`.
     recip: Vec<f32>,
 }
 
+/// The buffers of one thread: step counts and the weighted sums of its directions.
+#[derive(Debug, Default, Clone)]
+struct Lane {
+    steps: Vec<u32>,
+    acc: Vec<[f32; 4]>,
+}
+
+/// Regions smaller than this (pixels) run on one thread.
+const PARALLEL_MIN_AREA: usize = 16 * 1024;
+
 const NONE: u32 = u32::MAX;
 
+/// `to_fill` value of a pixel to fill.
+pub(crate) const FILL: u8 = 1;
+/// `to_fill` value of a pixel rays pass through but that is neither read nor filled
+/// ([`crate::Mask::HIDDEN`]).
+pub(crate) const PASS: u8 = 2;
+
 /// Fills the pixels of `frame` inside `region` whose entry in `to_fill` (local, row-major,
-/// `region.width * region.height`, non-zero = fill) is set, and clears those entries.
-/// Everything else in the frame counts as known. Returns the number of pixels filled.
+/// `region.width * region.height`) is [`FILL`], and clears those entries; [`PASS`] entries
+/// are unknown but left as they are. Everything else in the frame counts as known. Returns
+/// the number of pixels filled.
 pub(crate) fn ray_fill_region(
     frame: &mut ImageRgba8,
     region: Rect,
@@ -87,18 +104,22 @@ pub(crate) fn ray_fill_region(
     let rw = region.width as usize;
     let rh = region.height as usize;
     debug_assert_eq!(to_fill.len(), rw * rh);
-    let mut remaining = to_fill.iter().filter(|&&v| v != 0).count();
+    let mut remaining = to_fill.iter().filter(|&&v| v == FILL).count();
     let mut filled = 0usize;
-    scratch.steps.clear();
-    scratch.steps.resize(rw * rh, NONE);
+    for lane in &mut scratch.lanes {
+        lane.steps.clear();
+        lane.steps.resize(rw * rh, NONE);
+    }
     // Steps never exceed the region's larger side plus the 2-pixel reach outside it.
     let max_k = rw.max(rh) + 3;
     if scratch.recip.len() < max_k {
         scratch.recip = (0..max_k).map(|k| 1.0 / (k.max(1) as f32)).collect();
     }
     while remaining > 0 {
-        scratch.acc.clear();
-        scratch.acc.resize(rw * rh, [0.0; 4]);
+        for lane in &mut scratch.lanes {
+            lane.acc.clear();
+            lane.acc.resize(rw * rh, [0.0; 4]);
+        }
         scratch.spans.clear();
         scratch.spans.extend(to_fill.chunks_exact(rw).map(|row| {
             match row.iter().position(|&v| v != 0) {
@@ -106,8 +127,23 @@ pub(crate) fn ray_fill_region(
                 None => (1, 0),
             }
         }));
-        for &d in dirs.vectors() {
-            accumulate_direction(frame, region, to_fill, d, scratch);
+        // Each half of the directions into its own lane (the sums are added below).
+        let dirs = dirs.vectors();
+        let (first_half, second_half) = dirs.split_at(dirs.len() / 2);
+        let [lane_a, lane_b] = &mut scratch.lanes;
+        let (spans, recip) = (&scratch.spans, &scratch.recip);
+        let frame_ref: &ImageRgba8 = frame;
+        let to_fill_ref: &[u8] = to_fill;
+        let run = |lane: &mut Lane, ds: &[(i32, i32)]| {
+            for &d in ds {
+                accumulate_direction(frame_ref, region, to_fill_ref, d, lane, spans, recip);
+            }
+        };
+        if rw * rh >= PARALLEL_MIN_AREA {
+            rayon::join(|| run(lane_a, first_half), || run(lane_b, second_half));
+        } else {
+            run(lane_a, first_half);
+            run(lane_b, second_half);
         }
         let stride = fw as usize * 4;
         let data = frame.as_mut_slice();
@@ -116,8 +152,9 @@ pub(crate) fn ray_fill_region(
             let row = (region.y as usize + ly) * stride + region.x as usize * 4;
             for lx in 0..rw {
                 let li = ly * rw + lx;
-                let a = scratch.acc[li];
-                if to_fill[li] != 0 && a[3] > 0.0 {
+                let (p, q) = (scratch.lanes[0].acc[li], scratch.lanes[1].acc[li]);
+                let a = [p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]];
+                if to_fill[li] == FILL && a[3] > 0.0 {
                     let inv = 1.0 / a[3];
                     let p = row + lx * 4;
                     for ch in 0..3 {
@@ -129,6 +166,17 @@ pub(crate) fn ray_fill_region(
             }
         }
         if this_round == 0 {
+            // Pixels no ray reaches across the hidden ones (they block the image's border
+            // on every side): fill the hidden pixels too, so that they can pass colour on.
+            let hidden = to_fill.iter().filter(|&&v| v == PASS).count();
+            if hidden > 0 {
+                to_fill
+                    .iter_mut()
+                    .filter(|v| **v == PASS)
+                    .for_each(|v| *v = FILL);
+                remaining += hidden;
+                continue;
+            }
             return Err(DiminishError::NoBoundary {
                 region,
                 width: fw,
@@ -146,7 +194,9 @@ fn accumulate_direction(
     region: Rect,
     to_fill: &[u8],
     (dx, dy): (i32, i32),
-    scratch: &mut RayScratch,
+    lane: &mut Lane,
+    spans: &[(usize, usize)],
+    recip: &[f32],
 ) {
     let (fw, fh) = (frame.width() as isize, frame.height() as isize);
     let rw = region.width as usize;
@@ -156,12 +206,7 @@ fn accumulate_direction(
     let data = frame.as_slice();
     let stride = fw as usize * 4;
     let (dx, dy) = (dx as isize, dy as isize);
-    let RayScratch {
-        steps,
-        acc,
-        spans,
-        recip,
-    } = scratch;
+    let Lane { steps, acc } = lane;
 
     // Visit order: p - u must come before p.
     for i in 0..rh {
@@ -204,7 +249,7 @@ fn accumulate_direction(
                 }
             };
             steps[li] = k;
-            if k != NONE {
+            if k != NONE && to_fill[li] == FILL {
                 let ki = k as isize;
                 let hx = (gx - ki * dx) as usize;
                 let hy = (gy - ki * dy) as usize;

@@ -302,8 +302,12 @@ pub(crate) fn ensure_same_size(
 
 /// A binary mask, one byte a pixel, row-major, no padding.
 ///
-/// Convention: `0` = keep (background, known), **any non-zero value** = set (to be filled).
-/// Everything this crate writes uses `0` and `255`, so masks can be saved as greyscale images.
+/// Convention: `0` = keep (background, known), **any non-zero value** = set (unknown). Among
+/// set pixels, [`Mask::HIDDEN`] marks those that need no fill because something opaque will
+/// be drawn over them (the twin's interior): the fills neither read them as known background
+/// nor write them, and rays pass through them, so every other pixel is filled exactly as if
+/// they were filled too. Everything this crate writes uses `0` and `255`, so masks can be
+/// saved as greyscale images.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Mask {
     width: u32,
@@ -314,6 +318,8 @@ pub struct Mask {
 impl Mask {
     /// The value written for set pixels.
     pub const SET: u8 = 255;
+    /// A set pixel that need not be filled (see the type's docs).
+    pub const HIDDEN: u8 = 128;
 
     /// Wraps a buffer of `width * height` bytes (non-zero = set).
     pub fn new(width: u32, height: u32, data: Vec<u8>) -> Result<Self, DiminishError> {

@@ -487,3 +487,71 @@ fn diminisher_reuse_and_bbox() {
         assert_eq!(a, b);
     }
 }
+
+/// Hidden pixels (`Mask::HIDDEN`: the part of the mask something opaque will cover) are left
+/// as they are, and every other pixel is filled exactly as if the whole mask were filled
+/// (rays pass through hidden pixels): byte-identical outside the hidden set, for the ray fill
+/// and the clean plate. A mask whose hidden part walls a pixel off from every known pixel
+/// still fills (the hidden pixels are then filled too).
+#[test]
+fn hidden_pixels_are_skipped_without_changing_the_rest() {
+    let (w, h) = (200, 150);
+    let truth = image_from_rgb(w, h, |x, y| wood(x, y, 1.0));
+    let mask = blob(w, h, 100.0, 75.0, 50.0, 40.0);
+    // The hidden part: an inner blob.
+    let inner = blob(w, h, 95.0, 78.0, 30.0, 22.0);
+    let mut with_hidden = mask.clone();
+    for y in 0..h {
+        for x in 0..w {
+            if inner.get(x, y) && mask.get(x, y) {
+                with_hidden.as_mut_slice()[(y * w + x) as usize] = Mask::HIDDEN;
+            }
+        }
+    }
+    let plate = truth.clone();
+    let methods = [
+        FillMethod::Rays(RayDirections::Eight),
+        FillMethod::Rays(RayDirections::Sixteen),
+        FillMethod::CleanPlate(CleanPlate::new(&plate, Homography::identity())),
+    ];
+    for m in methods {
+        let mut a = truth.clone();
+        paint(&mut a, &mask, PROP);
+        let mut b = a.clone();
+        let sa = fill(&mut a, &mask, &m).unwrap();
+        let sb = fill(&mut b, &with_hidden, &m).unwrap();
+        let hidden = with_hidden
+            .as_slice()
+            .iter()
+            .filter(|&&v| v == Mask::HIDDEN)
+            .count();
+        assert!(hidden > 1000);
+        assert_eq!(sb.filled + hidden, sa.filled, "{m:?}");
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if with_hidden.as_slice()[i] == Mask::HIDDEN {
+                    assert_eq!(b.get(x, y).unwrap()[..3], PROP, "hidden pixel written");
+                } else {
+                    assert_eq!(a.get(x, y), b.get(x, y), "{m:?} at ({x}, {y})");
+                }
+            }
+        }
+    }
+    // A band across the whole image: the hidden rows wall the filled ones off from the known
+    // pixels above and below except through the hidden rows themselves.
+    let mut band = Mask::zeros(w, h).unwrap();
+    for y in 40..110 {
+        for x in 0..w {
+            let v = if (60..90).contains(&y) {
+                Mask::SET
+            } else {
+                Mask::HIDDEN
+            };
+            band.as_mut_slice()[(y * w + x) as usize] = v;
+        }
+    }
+    let mut c = truth.clone();
+    let stats = fill(&mut c, &band, &FillMethod::Rays(RayDirections::Eight)).unwrap();
+    assert!(stats.filled >= 30 * w as usize);
+}

@@ -6,6 +6,10 @@
 //! known pose for scale. Every render includes its GPU -> CPU readback. Skips with a message
 //! when no wgpu adapter is available.
 //!
+//! The CPU path (`pa-raster`) of the same work, side by side: `cpu_key_depth_{8k,128k}` (the
+//! key pose's depth: visibility map and silhouette), `cpu_render_live_{8k,128k}` (the
+//! live-textured twin with the visibility test), and `ar_frame_with_pose_ours_8k_{gpu,cpu}`.
+//!
 //! `cargo bench -p pa-pipeline` (add `-- --quick` for a rough figure in seconds).
 
 use std::time::Duration;
@@ -14,8 +18,10 @@ use criterion::Criterion;
 use glam::Mat4;
 use pa_camera::CameraModel;
 use pa_model::{anim, Model};
-use pa_pipeline::ar::{ArPipeline, ArSettings};
+use pa_pipeline::ar::{ArPipeline, ArSettings, RenderPath};
+use pa_pipeline::cpu_twin::CpuTwin;
 use pa_pipeline::GpuTwin;
+use pa_raster::{CpuRenderer, FrameCamera, FrameSampler, LiveParams, RasterCamera, Shading};
 use pa_render::{CpuCamera, CpuTexture, LiveCamera, LiveDraw, LiveTexturing, Renderer};
 use pa_scene::scene::marker_from_prop;
 use pa_scene::{PropSpec, Scene, SceneSpec};
@@ -120,33 +126,61 @@ fn main() {
                     .expect("render_live")
             })
         });
+
+        // The same on the CPU path: posed on the CPU, key depth, then the live twin.
+        let mut cpu_twin = CpuTwin::new(model).expect("cpu twin");
+        cpu_twin.pose(model, &anim_pose, &key_pose, marker_from_prop());
+        let raster_camera = RasterCamera::new(&scene.intrinsics, 0.01, 50.0);
+        let mut cpu = CpuRenderer::new();
+        let key_meshes = cpu_twin.key_depth_meshes(model);
+        g.bench_function(format!("cpu_key_depth_{label}"), |b| {
+            b.iter(|| {
+                cpu.render_key_depth(&raster_camera, camera_from_marker, &key_meshes);
+            })
+        });
+        let mut params = LiveParams::new(FrameCamera::new(&camera_model));
+        params.visibility = true;
+        let shading = Shading::Live {
+            frame: FrameSampler::new(W, H, &f.input.rgba8).expect("frame"),
+            params,
+        };
+        let meshes = cpu_twin.live_meshes(model);
+        g.bench_function(format!("cpu_render_live_{label}"), |b| {
+            b.iter(|| {
+                cpu.render_twin(&raster_camera, camera_from_marker, &meshes, &shading)
+                    .counts()
+            })
+        });
     }
 
-    let mut pipeline = ArPipeline::new(
-        &mut r,
-        scene.model.clone(),
-        0,
-        camera_model,
-        marker_from_prop(),
-        None,
-        ArSettings::ours(),
-    )
-    .expect("pipeline");
-    g.bench_function("ar_frame_with_pose_ours_8k", |b| {
-        b.iter(|| {
-            pipeline
-                .process_with_pose(
-                    &mut r,
-                    &f.input.rgba8,
-                    W,
-                    H,
-                    f.time_s,
-                    0.0,
-                    camera_from_marker,
-                )
-                .expect("frame")
-        })
-    });
+    for path in [RenderPath::Gpu, RenderPath::Cpu] {
+        let mut pipeline = ArPipeline::new(
+            &mut r,
+            scene.model.clone(),
+            0,
+            camera_model,
+            marker_from_prop(),
+            None,
+            ArSettings::ours(),
+        )
+        .expect("pipeline");
+        pipeline.set_render_path(path);
+        g.bench_function(format!("ar_frame_with_pose_ours_8k_{}", path.name()), |b| {
+            b.iter(|| {
+                pipeline
+                    .process_with_pose(
+                        &mut r,
+                        &f.input.rgba8,
+                        W,
+                        H,
+                        f.time_s,
+                        0.0,
+                        camera_from_marker,
+                    )
+                    .expect("frame")
+            })
+        });
+    }
     g.finish();
     c.final_summary();
 }

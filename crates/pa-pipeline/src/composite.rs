@@ -33,51 +33,88 @@ pub fn composite_twin_over(
     anti_alias: bool,
 ) -> bool {
     let (w, h) = (width as usize, height as usize);
+    if twin_mask.len() != w * h {
+        return false;
+    }
+    let bbox = bounding_box(twin_mask, w, h);
+    composite_twin_over_in(
+        background, twin_rgba8, twin_mask, width, height, anti_alias, bbox,
+    )
+}
+
+/// [`composite_twin_over`] when the twin's bounding box (inclusive `x0, y0, x1, y1`) is known:
+/// every set pixel of `twin_mask` lies inside it, and nothing outside it (grown by the
+/// smoothing window) is read or written. Cost O(box), not O(frame).
+pub fn composite_twin_over_in(
+    background: &mut [u8],
+    twin_rgba8: &[u8],
+    twin_mask: &[bool],
+    width: u32,
+    height: u32,
+    anti_alias: bool,
+    bbox: Option<(usize, usize, usize, usize)>,
+) -> bool {
+    let (w, h) = (width as usize, height as usize);
     let n = w * h;
     if background.len() != n * 4 || twin_rgba8.len() != n * 4 || twin_mask.len() != n {
         return false;
     }
+    let Some((x0, y0, x1, y1)) = bbox else {
+        return true;
+    };
+    if x1 >= w || y1 >= h || x0 > x1 || y0 > y1 {
+        return false;
+    }
     if !anti_alias {
-        for (i, _) in twin_mask.iter().enumerate().filter(|(_, &m)| m) {
-            background[i * 4..i * 4 + 3].copy_from_slice(&twin_rgba8[i * 4..i * 4 + 3]);
+        for y in y0..=y1 {
+            for i in y * w + x0..=y * w + x1 {
+                if twin_mask[i] {
+                    background[i * 4..i * 4 + 3].copy_from_slice(&twin_rgba8[i * 4..i * 4 + 3]);
+                }
+            }
         }
         return true;
     }
-    let Some((x0, y0, x1, y1)) = bounding_box(twin_mask, w, h) else {
-        return true;
-    };
     let lut = srgb_to_linear_lut();
     // The region: the twin's box grown by the window and the gradient stencil, clamped.
     let grow = BOX_RADIUS + 1;
     let (rx0, ry0) = (x0.saturating_sub(grow), y0.saturating_sub(grow));
     let (rx1, ry1) = ((x1 + grow).min(w - 1), (y1 + grow).min(h - 1));
     let rw = rx1 - rx0 + 1;
-    // Box counts of the mask over the (2R+1)^2 window (beyond the image border the nearest
-    // pixels repeat: the border is not an edge): column sums, then row sums.
-    let clamp_i = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
-    let r = BOX_RADIUS as isize;
     let rh = ry1 - ry0 + 1;
-    let weight = |d: isize| u32::from(BINOMIAL[(d + r) as usize]);
-    let mut column = vec![0u32; rw * rh];
-    for y in ry0..=ry1 {
-        for x in rx0..=rx1 {
-            column[(y - ry0) * rw + (x - rx0)] = (-r..=r)
-                .map(|d| weight(d) * twin_mask[clamp_i(y as isize + d, h) * w + x] as u32)
-                .sum();
+    let r = BOX_RADIUS;
+    // Weighted counts of the mask over the (2R+1)^2 window (beyond the image border the
+    // nearest pixels repeat: the border is not an edge): column sums, then row sums, each a
+    // loop over contiguous pixels with 16-bit integers (the weights total 80, so a count is
+    // at most 6400).
+    let mut column = vec![0u16; rw * rh];
+    for ly in 0..rh {
+        let y = ry0 + ly;
+        let out = &mut column[ly * rw..(ly + 1) * rw];
+        for (k, &wt) in BINOMIAL.iter().enumerate() {
+            let yy = (y + k).saturating_sub(r).min(h - 1);
+            let src = &twin_mask[yy * w + rx0..yy * w + rx0 + rw];
+            let wt = u16::from(wt);
+            for (o, &m) in out.iter_mut().zip(src) {
+                *o += wt * u16::from(m);
+            }
         }
     }
-    let mut counts = vec![0u32; rw * rh];
-    for y in 0..rh {
-        for x in 0..rw {
-            counts[y * rw + x] = (-r..=r)
-                .map(|d| {
-                    // Columns outside the region are those of its edge (the mask there is
-                    // either empty or the image border repeats).
-                    let gx = clamp_i((x + rx0) as isize + d, w);
-                    let lx = gx.clamp(rx0, rx1) - rx0;
-                    weight(d) * column[y * rw + lx]
-                })
-                .sum();
+    // Columns outside the region are those of its edge (the mask there is either empty or
+    // the image border repeats): pad each row by R copies of its ends.
+    let mut padded = vec![0u16; rw + 2 * r];
+    let mut counts = vec![0u16; rw * rh];
+    for ly in 0..rh {
+        let row = &column[ly * rw..(ly + 1) * rw];
+        padded[r..r + rw].copy_from_slice(row);
+        padded[..r].fill(row[0]);
+        padded[r + rw..].fill(row[rw - 1]);
+        let out = &mut counts[ly * rw..(ly + 1) * rw];
+        for (k, &wt) in BINOMIAL.iter().enumerate() {
+            let wt = u16::from(wt);
+            for (o, &c) in out.iter_mut().zip(&padded[k..k + rw]) {
+                *o += wt * c;
+            }
         }
     }
     let total: u32 = BINOMIAL.iter().map(|&b| u32::from(b)).sum();

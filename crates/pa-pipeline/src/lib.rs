@@ -6,6 +6,7 @@
 
 pub mod ar;
 pub mod composite;
+pub mod cpu_twin;
 pub mod framing;
 pub mod metrics;
 pub mod shading;

@@ -126,6 +126,32 @@ fn solve<'a>(samples: impl Iterator<Item = &'a IrradianceSample>) -> Option<Irra
         .then_some(Irradiance { rows })
 }
 
+/// Per-pixel camera-space depth of the key pose, row-major.
+#[derive(Debug, Clone, Copy)]
+pub enum KeyDepth<'a> {
+    /// Metres, +inf (or NaN) where empty (the GPU path's read-back).
+    Metres(&'a [f32]),
+    /// 1 / metres, 0 where empty (the CPU path's visibility buffer).
+    InverseMetres(&'a [f32]),
+}
+
+impl KeyDepth<'_> {
+    fn len(&self) -> usize {
+        match self {
+            KeyDepth::Metres(d) | KeyDepth::InverseMetres(d) => d.len(),
+        }
+    }
+
+    /// Depth in metres at index `i` (+inf where empty).
+    fn at(&self, i: usize) -> f32 {
+        match self {
+            KeyDepth::Metres(d) => d[i],
+            KeyDepth::InverseMetres(d) if d[i] > 0.0 => 1.0 / d[i],
+            KeyDepth::InverseMetres(_) => f32::INFINITY,
+        }
+    }
+}
+
 /// A view of the key pose as the camera saw it.
 #[derive(Debug, Clone, Copy)]
 pub struct KeyView<'a> {
@@ -134,9 +160,8 @@ pub struct KeyView<'a> {
     pub camera_from_world: Mat4,
     /// The camera frame, sRGB RGBA8.
     pub frame_rgba8: &'a [u8],
-    /// Camera-space depth (metres) of the key pose rendered from this camera, +inf where
-    /// empty, same size as the frame.
-    pub key_depth_m: &'a [f32],
+    /// The key pose's depth as rendered from this camera, same size as the frame.
+    pub key_depth: KeyDepth<'a>,
     pub width: u32,
     pub height: u32,
 }
@@ -160,25 +185,56 @@ pub fn irradiance_samples(
     view: &KeyView<'_>,
     max_samples: usize,
 ) -> Vec<IrradianceSample> {
-    let total: usize = posed.iter().map(|p| p.positions.len()).sum();
+    irradiance_samples_from(
+        model,
+        posed.iter().map(|p| {
+            (
+                p.mesh,
+                p.primitive,
+                p.positions.as_slice(),
+                p.normals.as_slice(),
+            )
+        }),
+        world_from_model,
+        view,
+        max_samples,
+    )
+}
+
+/// [`irradiance_samples`] over any posed primitives: `(mesh, primitive, positions, normals)`
+/// in the model's scene frame (placed in the world by `world_from_model`).
+pub fn irradiance_samples_from<'a>(
+    model: &Model,
+    posed: impl Iterator<Item = (usize, usize, &'a [Vec3], &'a [Vec3])> + Clone,
+    world_from_model: Mat4,
+    view: &KeyView<'_>,
+    max_samples: usize,
+) -> Vec<IrradianceSample> {
+    let total: usize = posed.clone().map(|p| p.2.len()).sum();
     let stride = (total / max_samples.max(1)).max(1);
     let (w, h) = (view.width as usize, view.height as usize);
-    if view.frame_rgba8.len() != w * h * 4 || view.key_depth_m.len() != w * h {
+    if view.frame_rgba8.len() != w * h * 4 || view.key_depth.len() != w * h {
         return Vec::new();
     }
     let camera_from_model = (view.camera_from_world * world_from_model).as_dmat4();
     let world_from_model_rot = glam::Mat3::from_mat4(world_from_model);
     let lut = srgb_lut();
     let mut out = Vec::new();
-    for p in posed {
-        let prim = &model.meshes[p.mesh].primitives[p.primitive];
+    for (mesh, primitive, positions, normals) in posed {
+        let Some(prim) = model
+            .meshes
+            .get(mesh)
+            .and_then(|m| m.primitives.get(primitive))
+        else {
+            continue;
+        };
         let Some(material) = prim.material.and_then(|m| model.materials.get(m)) else {
             continue;
         };
         let image = material.base_color_image.and_then(|i| model.images.get(i));
         let factor = material.base_color_factor;
-        for v in (0..p.positions.len()).step_by(stride) {
-            let (Some(pos), Some(nrm)) = (p.positions.get(v), p.normals.get(v)) else {
+        for v in (0..positions.len()).step_by(stride) {
+            let (Some(pos), Some(nrm)) = (positions.get(v), normals.get(v)) else {
                 continue;
             };
             let pc = camera_from_model.transform_point3(pos.as_dvec3());
@@ -196,7 +252,7 @@ pub fn irradiance_samples(
                 continue;
             }
             let i = y as usize * w + x as usize;
-            let z = f64::from(view.key_depth_m[i]);
+            let z = f64::from(view.key_depth.at(i));
             if !z.is_finite() || (pc.z - z).abs() > DEPTH_TOLERANCE_REL * z + DEPTH_TOLERANCE_M {
                 continue;
             }

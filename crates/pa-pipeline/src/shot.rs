@@ -342,6 +342,17 @@ size_m = 0.05
         assert!(e.contains("no animation"), "{e}");
     }
 
+    /// A model without a skin is a defined case, not an error: node animation and morph
+    /// targets still move it (a warning says so).
+    #[test]
+    fn model_without_skin_is_accepted() {
+        let (_d, p) = write(SHOT);
+        let shot = Shot::load(&p).expect("valid");
+        let model = tiny_animated_model();
+        assert!(model.skins.is_empty());
+        assert_eq!(shot.check_model(&p, &model).expect("accepted"), 0);
+    }
+
     /// A tiny animated model (one node, one translation channel) built from glTF JSON.
     fn tiny_animated_model() -> pa_model::Model {
         use base64::Engine as _;

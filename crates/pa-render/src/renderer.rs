@@ -215,6 +215,12 @@ impl Renderer {
         describe(&self.ctx.info)
     }
 
+    /// True when the adapter is a software rasteriser (Mesa llvmpipe / lavapipe, WARP): the
+    /// pipeline's own CPU path is then faster than this renderer.
+    pub fn is_software(&self) -> bool {
+        self.ctx.info.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// The wgpu backend in use.
     pub fn backend(&self) -> wgpu::Backend {
         self.ctx.info.backend

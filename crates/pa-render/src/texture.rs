@@ -70,60 +70,14 @@ impl CpuTexture {
     }
 }
 
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(l: f32) -> u8 {
-    let l = l.clamp(0.0, 1.0);
-    let c = if l <= 0.003_130_8 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (c * 255.0 + 0.5) as u8
-}
-
-/// The next mip level (2x2 box filter in linear light; odd sides clamp the last row/column).
-fn downsample(width: u32, height: u32, rgba8: &[u8], lut: &[f32; 256]) -> (u32, u32, Vec<u8>) {
-    let (w2, h2) = ((width / 2).max(1), (height / 2).max(1));
-    let mut out = Vec::with_capacity(w2 as usize * h2 as usize * 4);
-    let texel = |x: u32, y: u32, c: usize| -> u8 {
-        let i = (y.min(height - 1) as usize * width as usize + x.min(width - 1) as usize) * 4 + c;
-        rgba8.get(i).copied().unwrap_or(0)
-    };
-    for y in 0..h2 {
-        for x in 0..w2 {
-            for c in 0..4 {
-                let s = [
-                    texel(2 * x, 2 * y, c),
-                    texel(2 * x + 1, 2 * y, c),
-                    texel(2 * x, 2 * y + 1, c),
-                    texel(2 * x + 1, 2 * y + 1, c),
-                ];
-                if c == 3 {
-                    let sum: u32 = s.iter().map(|&v| v as u32).sum();
-                    out.push(((sum + 2) / 4) as u8);
-                } else {
-                    let sum: f32 = s.iter().map(|&v| lut[v as usize]).sum();
-                    out.push(linear_to_srgb(sum * 0.25));
-                }
-            }
-        }
-    }
-    (w2, h2, out)
-}
+// The mip chain is the CPU path's (`pa_raster::texture::downsample_srgb8`), so that both
+// renderers sample the same texels.
+use pa_raster::texture::downsample_srgb8;
 
 /// Writes `texture` into mip level 0 of `gpu` and, when `gpu` has more levels, the CPU-built
 /// mip chain (2x2 box filter in linear light) into the others.
 pub(crate) fn write_levels(queue: &wgpu::Queue, gpu: &wgpu::Texture, texture: &CpuTexture) {
     let mip_level_count = gpu.mip_level_count();
-    let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
     let (mut w, mut h) = (texture.width, texture.height);
     let mut level_data = std::borrow::Cow::Borrowed(texture.rgba8.as_slice());
     for level in 0..mip_level_count {
@@ -147,7 +101,7 @@ pub(crate) fn write_levels(queue: &wgpu::Queue, gpu: &wgpu::Texture, texture: &C
             },
         );
         if level + 1 < mip_level_count {
-            let (w2, h2, data) = downsample(w, h, &level_data, &lut);
+            let (w2, h2, data) = downsample_srgb8(w, h, &level_data);
             (w, h) = (w2, h2);
             level_data = std::borrow::Cow::Owned(data);
         }
@@ -222,20 +176,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn srgb_round_trip() {
-        for v in 0..=255u8 {
-            assert_eq!(linear_to_srgb(srgb_to_linear(v)), v);
-        }
-    }
-
-    #[test]
     fn downsample_is_linear_light_average() {
-        let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as u8));
         // Black and white average to linear 0.5, i.e. sRGB 188.
         let data = [
             0, 0, 0, 255, 255, 255, 255, 255, 0, 0, 0, 255, 255, 255, 255, 255,
         ];
-        let (w, h, out) = downsample(2, 2, &data, &lut);
+        let (w, h, out) = downsample_srgb8(2, 2, &data);
         assert_eq!((w, h), (1, 1));
         assert_eq!(out, vec![188, 188, 188, 255]);
     }

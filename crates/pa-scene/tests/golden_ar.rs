@@ -6,12 +6,13 @@
 //! and the in-between of frame 20 (the head turned about 38 degrees), seen from the true
 //! camera pose (no tracker, so nothing depends on detection). Tolerance: every channel within
 //! 2/255 on at least 99.5 % of the pixels, as the renderer's goldens (measured: lavapipe
-//! against llvmpipe differ by at most 1/255 here). `UPDATE_GOLDEN=1` rewrites the
+//! against llvmpipe differ by at most 1/255 here). Both renderers of the texture stage (wgpu
+//! and our CPU rasteriser) must match the same goldens. `UPDATE_GOLDEN=1` rewrites the
 //! goldens in `tests/golden/`; a failure writes `target/golden-failures/<name>.{actual,diff}.png`.
 
 use std::path::PathBuf;
 
-use pa_pipeline::ar::{ArFrame, ArSettings, Fill, Texturing};
+use pa_pipeline::ar::{ArFrame, ArSettings, Fill, RenderPath, Texturing};
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec};
@@ -23,8 +24,9 @@ const FRAME: u32 = 20;
 
 const TOLERANCE: Tolerance = Tolerance::DEFAULT;
 
-fn run(renderer: &mut Renderer, scene: &Scene, settings: ArSettings) -> ArFrame {
+fn run(renderer: &mut Renderer, scene: &Scene, settings: ArSettings, path: RenderPath) -> ArFrame {
     let mut p = pipeline_for(scene, renderer, settings).expect("pipeline");
+    p.set_render_path(path);
     let f = scene.frame(renderer, FRAME).expect("frame");
     p.process_with_pose(
         renderer,
@@ -96,9 +98,14 @@ fn texturing_and_fills_match_their_goldens() {
     ];
     let mut outputs = Vec::new();
     for (name, settings) in cases {
-        let out = run(&mut renderer, &scene, settings);
-        golden(name, &out);
-        outputs.push(out);
+        for path in [RenderPath::Gpu, RenderPath::Cpu] {
+            println!("{name}: {} path", path.name());
+            let out = run(&mut renderer, &scene, settings, path);
+            golden(name, &out);
+            if path == RenderPath::Cpu {
+                outputs.push(out);
+            }
+        }
     }
     // The goldens differ where they should: the fallback changes the twin, each fill the
     // background around it (guards against a golden accidentally shared by two cases).

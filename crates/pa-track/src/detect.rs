@@ -448,25 +448,23 @@ impl Detector {
         &self.config
     }
 
-    fn buffers(
-        &mut self,
-        width: u32,
-        height: u32,
-        decimate: u32,
-    ) -> Result<&mut PassBuffers, TrackError> {
+    /// Takes the working buffers of a pass out of the cache (fresh ones the first time);
+    /// [`Detector::put_buffers`] returns them.
+    fn take_buffers(&mut self, width: u32, height: u32, decimate: u32) -> PassBuffers {
         let key = (width, height, decimate);
-        if !self.buffers.contains_key(&key) {
-            let buf = PassBuffers::default();
+        self.buffers.remove(&key).unwrap_or_default()
+    }
+
+    fn put_buffers(&mut self, width: u32, height: u32, decimate: u32, buf: PassBuffers) {
+        let key = (width, height, decimate);
+        if !self.order.contains(&key) {
             if self.order.len() >= MAX_CACHED_DECODERS {
                 let old = self.order.remove(0);
                 self.buffers.remove(&old);
             }
             self.order.push(key);
-            self.buffers.insert(key, buf);
         }
-        self.buffers
-            .get_mut(&key)
-            .ok_or_else(|| TrackError::Config("buffer cache".into()))
+        self.buffers.insert(key, buf);
     }
 
     /// Detects all tags in a frame. A frame without tags gives an empty list; frames too small
@@ -505,22 +503,52 @@ impl Detector {
 
     /// One pass of quad search at `decimate` and decoding at full resolution.
     fn run_pass(&mut self, image: &GrayImage, decimate: u32) -> Result<Vec<Detection>, TrackError> {
+        let mut buf = self.take_buffers(image.width, image.height, decimate);
+        let out = Self::pass(&self.config, &self.families, &mut buf, image, decimate);
+        self.put_buffers(image.width, image.height, decimate, buf);
+        out
+    }
+
+    /// Two passes at once, on two threads (their buffers are separate); results in order.
+    fn run_two_passes(
+        &mut self,
+        image: &GrayImage,
+        d1: u32,
+        d2: u32,
+    ) -> Result<(Vec<Detection>, Vec<Detection>), TrackError> {
+        let (w, h) = (image.width, image.height);
+        let (mut b1, mut b2) = (self.take_buffers(w, h, d1), self.take_buffers(w, h, d2));
+        let (config, families) = (&self.config, &self.families);
+        let (r1, r2) = rayon::join(
+            || Self::pass(config, families, &mut b1, image, d1),
+            || Self::pass(config, families, &mut b2, image, d2),
+        );
+        self.put_buffers(w, h, d1, b1);
+        self.put_buffers(w, h, d2, b2);
+        Ok((r1?, r2?))
+    }
+
+    fn pass(
+        config: &DetectorConfig,
+        families: &[(TagFamily, FamilyCodes)],
+        buf: &mut PassBuffers,
+        image: &GrayImage,
+        decimate: u32,
+    ) -> Result<Vec<Detection>, TrackError> {
         let (w, h) = (image.width as usize, image.height as usize);
-        let split = self.config.threshold_split;
-        let min_diff = self.config.min_white_black_diff;
-        let refine = self.config.refine_edges;
-        let min_margin = self.config.min_decision_margin;
-        let normal_border = self.families.iter().any(|(_, f)| !f.reversed_border());
-        let reversed_border = self.families.iter().any(|(_, f)| f.reversed_border());
-        let tag_width = (self
-            .families
+        let split = config.threshold_split;
+        let min_diff = config.min_white_black_diff;
+        let refine = config.refine_edges;
+        let min_margin = config.min_decision_margin;
+        let normal_border = families.iter().any(|(_, f)| !f.reversed_border());
+        let reversed_border = families.iter().any(|(_, f)| f.reversed_border());
+        let tag_width = (families
             .iter()
             .map(|(_, f)| f.width_at_border())
             .min()
             .unwrap_or(8) as u32
             / decimate)
             .max(3);
-        let buf = self.buffers(image.width, image.height, decimate)?;
         let d = decimate as usize;
         let (qw, qh) = (1 + (w - 1) / d, 1 + (h - 1) / d);
         if qw < 8 || qh < 8 {
@@ -585,7 +613,7 @@ impl Detector {
             let Some(hom) = Homography::from_quad(&q.p) else {
                 continue;
             };
-            for (family, codes) in &self.families {
+            for (family, codes) in families {
                 if codes.reversed_border() != q.reversed_border {
                     continue;
                 }
@@ -640,9 +668,15 @@ impl Detector {
             }
         }
         let mut out: Vec<Detection> = Vec::new();
-        for decimate in passes {
-            let raw = self.run_pass(image, decimate)?;
-            merge_new(&mut out, raw);
+        if let [d1, d2] = passes[..] {
+            let (first, second) = self.run_two_passes(image, d1, d2)?;
+            merge_new(&mut out, first);
+            merge_new(&mut out, second);
+        } else {
+            for decimate in passes {
+                let raw = self.run_pass(image, decimate)?;
+                merge_new(&mut out, raw);
+            }
         }
         if self.config.upsample_pass
             && (image.width as u64 * image.height as u64) <= 16_000_000

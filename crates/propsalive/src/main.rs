@@ -5,6 +5,7 @@
 //! configuration before any work starts, so that bad input fails fast with a clear message.
 
 mod cmd;
+mod logger;
 mod plot;
 
 use anyhow::Result;
@@ -39,13 +40,19 @@ enum Command {
     Export(cmd::export::Args),
     /// Write a printable AprilTag marker or board: SVG at true size and PNG at a given DPI.
     Marker(cmd::marker::Args),
-    /// Detect and track the marker in an image or a folder of images; one JSON line a frame.
+    /// Detect and track the marker in an image, a folder of images or a video; JSON lines.
     Track(cmd::track::Args),
-    /// Stop-motion take: a folder of stills through the pipeline, resumable (frames + log).
+    /// Camera intrinsics and distortion from chessboard or AprilTag board images (OpenCV YAML).
+    Calibrate(cmd::calibrate::Args),
+    /// Stop-motion take: stills, a video or a camera through the pipeline, resumable.
     Run(cmd::run::Args),
+    /// Live preview window: the composited view at camera rate, with keys and a status bar.
+    #[command(long_about = cmd::preview::long_about())]
+    Preview(cmd::preview::Args),
 }
 
 fn main() -> std::process::ExitCode {
+    logger::init();
     let cli = Cli::parse();
     let result: Result<()> = match cli.command {
         Command::Demo(args) => cmd::demo::run(args),
@@ -56,7 +63,9 @@ fn main() -> std::process::ExitCode {
         Command::Export(args) => cmd::export::run(args),
         Command::Marker(args) => cmd::marker::run(args),
         Command::Track(args) => cmd::track::run(args),
+        Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Run(args) => cmd::run::run(args),
+        Command::Preview(args) => cmd::preview::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,5 +1,6 @@
-//! `propsalive bench` at a tiny size: it prints the table and writes JSON whose every
-//! configuration holds finite, positive times and a finite prop PSNR. No time is asserted.
+//! `propsalive bench` at a tiny size, on both render paths: it prints the table and writes
+//! JSON whose every configuration holds finite, positive times and a finite prop PSNR, and the
+//! two paths' PSNR agree (the CPU path draws what the GPU path draws). No time is asserted.
 
 use std::process::Command;
 
@@ -19,6 +20,8 @@ fn bench_quick_writes_a_table_and_json() {
             "1,2",
             "--frames",
             "3",
+            "--render-path",
+            "gpu,cpu",
             "--json",
         ])
         .arg(&json_path)
@@ -32,10 +35,11 @@ fn bench_quick_writes_a_table_and_json() {
     assert!(run.status.success(), "{stderr}");
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(
-        stdout.contains("| size | vertices | props | track |"),
+        stdout.contains("| path | size | vertices | props | track |"),
         "{stdout}"
     );
-    assert!(stdout.contains("| 160x120 |"), "{stdout}");
+    assert!(stdout.contains("| cpu | 160x120 |"), "{stdout}");
+    assert!(stdout.contains("| gpu | 160x120 |"), "{stdout}");
 
     let doc: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json_path).expect("json written")).expect("json");
@@ -46,7 +50,19 @@ fn bench_quick_writes_a_table_and_json() {
         .iter()
         .map(|c| c["props"].as_u64().expect("props"))
         .collect();
-    assert_eq!(props, vec![1, 2]);
+    assert_eq!(props, vec![1, 1, 2, 2]);
+    let paths: Vec<&str> = configs
+        .iter()
+        .map(|c| c["render_path"].as_str().expect("render_path"))
+        .collect();
+    assert_eq!(paths, vec!["gpu", "cpu", "gpu", "cpu"]);
+    for pair in configs.chunks(2) {
+        let (g, c) = (
+            pair[0]["prop_psnr_db"].as_f64().unwrap_or(f64::NAN),
+            pair[1]["prop_psnr_db"].as_f64().unwrap_or(f64::NAN),
+        );
+        assert!((g - c).abs() < 0.2, "PSNR gpu {g} vs cpu {c}");
+    }
     let positive = |v: &serde_json::Value, what: &str| {
         let x = v.as_f64().unwrap_or(f64::NAN);
         assert!(x.is_finite() && x > 0.0, "{what}: {v}");
@@ -59,7 +75,13 @@ fn bench_quick_writes_a_table_and_json() {
         );
         // Every stage ran; animate and composite can be below the clock's resolution, so
         // they are only required to be finite and not negative.
-        for stage in ["track", "texture", "diminish", "readback"] {
+        // The CPU path reads nothing back from a GPU.
+        let timed: &[&str] = if c["render_path"] == "gpu" {
+            &["track", "texture", "diminish", "readback"]
+        } else {
+            &["track", "texture", "diminish"]
+        };
+        for stage in timed {
             for q in ["median", "p95"] {
                 positive(&c["stages_ms"][stage][q], &format!("{stage} {q}"));
             }

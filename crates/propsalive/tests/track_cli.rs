@@ -1,7 +1,7 @@
 //! `propsalive marker` and `propsalive track` end to end: printable markers at true size
 //! whose rendering the detector reads back (board geometry = `pa_track::Board::grid`), and the
 //! tracker CLI on good and bad input (corrupt frame in a folder, broken calibration files,
-//! resolution mismatch, no tag, video path, no overwrite without --force).
+//! resolution mismatch, no tag, broken video, no overwrite without --force).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -493,8 +493,9 @@ fn track_scales_intrinsics_for_same_aspect_and_refuses_other_aspect() {
 }
 
 #[test]
-fn track_refuses_video_and_unreadable_single_image() {
+fn track_refuses_broken_video_and_unreadable_single_image() {
     let dir = tempfile::tempdir().expect("tempdir");
+    // A video is read (run_video.rs tracks a real one); a truncated one is an error naming it.
     let video = dir.path().join("take1.mp4");
     std::fs::write(&video, b"\0\0\0\x18ftypmp42").expect("write");
     let o = propsalive(&[
@@ -507,7 +508,7 @@ fn track_refuses_video_and_unreadable_single_image() {
     ]);
     assert!(!o.status.success());
     assert!(
-        stderr(&o).contains("video input is not supported"),
+        stderr(&o).contains("take1.mp4") && stderr(&o).contains("corrupt or truncated"),
         "{}",
         stderr(&o)
     );

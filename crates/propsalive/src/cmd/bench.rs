@@ -9,19 +9,21 @@
 //! What is timed, per frame:
 //! - **track**: grey conversion, AprilTag detection and board pose by the real tracker, once
 //!   per frame;
-//! - **animate**, **texture**, **diminish**, **composite**: the [`ArPipeline`] stages, summed
-//!   over the N props of the frame;
+//! - **animate**, **texture**, **diminish**, **composite**: the [`ArPipeline`] stages (all
+//!   props of the frame);
 //! - **readback**: mapping the GPU results and copying them to CPU memory (row padding,
 //!   depth decoding), taken out of texture, where the pipeline counts it. Texture keeps the
 //!   wait for the GPU to finish, which on a software rasteriser is the rasterisation itself
 //!   (reported as `gpu_wait` in the JSON);
 //! - **end-to-end**: the wall time of the whole frame (all props).
 //!
-//! "N props" means N independent `ArPipeline`s on the same frame: the first tracks the board
-//! (`ArPipeline::process`), the other N - 1 reuse its tracked pose
-//! (`ArPipeline::process_with_pose`), so tracking is paid once and every other stage N
-//! times, each prop with its own twin, frame upload, renders, readbacks and fill of a
-//! full-size frame. The props stand at the same place; PSNR is of the first prop's output.
+//! "N props" means one `ArPipeline` drawing N props in every frame (`ArPipeline::add_prop`):
+//! the frame is tracked, filled and composited once; every prop is posed, placed and drawn
+//! (key-pose depth and live-textured twin, with the depth test between props). The N props
+//! are copies of the bust standing at the same place, the worst case of overdraw, so the
+//! output is the single prop's and its PSNR against the ground truth stays comparable; props
+//! spread over the set would cost more in the fill and the shading (their union covers more
+//! pixels) and less in rasterisation.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -29,8 +31,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use pa_camera::CameraModel;
-use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, Fill, StageTimings};
+use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, Fill, RenderPath, StageTimings};
 use pa_render::Renderer;
 use pa_scene::eval::{measure, pipeline_for};
 use pa_scene::scene::marker_from_prop;
@@ -49,11 +50,12 @@ By default the configurations vary one axis at a time around 1280x720, an 8,000-
 and one prop per frame: sizes 640x480, 1280x720, 1920x1080; props of 2k, 8k, 32k, 128k \
 vertices; 1, 4 and 16 props per frame (8 configurations). --grid runs every combination.
 
-\"N props\" = N independent pipelines on the same frame: the first tracks the marker, the \
-other N-1 reuse its tracked pose (process_with_pose), so tracking is paid once a frame and \
-animate, texture, diminish, composite and readback N times (props at the same place; PSNR is \
-of the first prop's output). Frames the tracker loses are still rendered, at the true pose, so \
-every stage is timed; the `tracked` column counts the frames it did track.
+\"N props\" = one pipeline drawing N props in every frame (ArPipeline::add_prop): tracking, \
+the fill and the composite once a frame, posing and drawing per prop, with the depth test \
+between props. The N props are copies of the bust at the same place (the worst case of \
+overdraw; the output and its PSNR are the single prop's). Frames the tracker loses are still \
+rendered, at the true pose, so every stage is timed; the `tracked` column counts the frames \
+it did track.
 
 \"readback\" is the CPU side of reading GPU results back (map, copy, unpad, decode); \
 \"texture\" excludes it but includes waiting for the GPU, which on a software rasteriser is \
@@ -97,6 +99,12 @@ pub struct Args {
     /// Where to write the results as JSON (atomically).
     #[arg(long, default_value = "out/bench/bench.json")]
     pub json: PathBuf,
+    /// Renderers of the texture stage to time, comma-separated: cpu (our rasteriser), gpu
+    /// (wgpu: the GPU, or Mesa's software drivers). Every configuration runs once per path.
+    /// Default: the path the pipeline picks for this machine (cpu on a software adapter), plus
+    /// the other path at the base configuration, so the two are compared in every run.
+    #[arg(long, value_delimiter = ',')]
+    pub render_path: Option<Vec<RenderPath>>,
 }
 
 /// Which pipeline settings the bench times.
@@ -138,6 +146,7 @@ struct Config {
     height: u32,
     vertices: u32,
     props: u32,
+    path: RenderPath,
 }
 
 /// The checked settings of a run.
@@ -148,6 +157,8 @@ struct Plan {
     method: Method,
     seed: u64,
     json: PathBuf,
+    /// `--render-path`, or None for the machine's choice plus the other at the base.
+    paths: Option<Vec<RenderPath>>,
 }
 
 const MAX_PROPS: u32 = 64;
@@ -195,6 +206,9 @@ fn plan(args: Args) -> Result<Plan> {
     if !(1..=MAX_FRAMES).contains(&frames) {
         bail!("--frames {frames} is out of range (1..={MAX_FRAMES})");
     }
+    if args.render_path.as_ref().is_some_and(|p| p.is_empty()) {
+        bail!("--render-path needs at least one of cpu, gpu");
+    }
     if args.warmup > MAX_FRAMES {
         bail!(
             "--warmup {} is out of range (0..={MAX_FRAMES})",
@@ -211,6 +225,7 @@ fn plan(args: Args) -> Result<Plan> {
                         height,
                         vertices: v,
                         props: p,
+                        path: RenderPath::Gpu,
                     });
                 }
             }
@@ -226,7 +241,33 @@ fn plan(args: Args) -> Result<Plan> {
         method: args.method,
         seed: args.seed,
         json: args.json,
+        paths: args.render_path,
     })
+}
+
+/// Every configuration once per render path: `paths`, or `auto` everywhere plus the other
+/// path right after the first (base) configuration.
+fn with_paths(configs: &[Config], paths: Option<&[RenderPath]>, auto: RenderPath) -> Vec<Config> {
+    match paths {
+        Some(paths) => configs
+            .iter()
+            .flat_map(|c| paths.iter().map(move |&path| Config { path, ..*c }))
+            .collect(),
+        None => {
+            let other = match auto {
+                RenderPath::Cpu => RenderPath::Gpu,
+                RenderPath::Gpu => RenderPath::Cpu,
+            };
+            let mut out = Vec::with_capacity(configs.len() + 1);
+            for (i, c) in configs.iter().enumerate() {
+                out.push(Config { path: auto, ..*c });
+                if i == 0 {
+                    out.push(Config { path: other, ..*c });
+                }
+            }
+            out
+        }
+    }
 }
 
 /// One axis at a time around a base configuration (1280x720, 8,000 vertices, 1 prop where
@@ -248,8 +289,9 @@ fn axes(sizes: &[(u32, u32)], vertices: &[u32], props: &[u32]) -> Vec<Config> {
         height,
         vertices,
         props,
+        path: RenderPath::Gpu,
     };
-    let mut out: Vec<Config> = Vec::new();
+    let mut out: Vec<Config> = vec![config(base_size, base_v, base_p)];
     let candidates = sizes
         .iter()
         .map(|&s| config(s, base_v, base_p))
@@ -277,9 +319,9 @@ struct Sample {
     tracked: bool,
 }
 
-/// Runs one frame through every prop's pipeline.
+/// Runs one frame through the pipeline (all its props).
 fn run_frame(
-    pipes: &mut [ArPipeline],
+    pipe: &mut ArPipeline,
     renderer: &mut Renderer,
     scene: &Scene,
     f: &SceneFrame,
@@ -287,12 +329,9 @@ fn run_frame(
     let (w, h) = (f.input.width, f.input.height);
     let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
     let frame_time = f.index as f64 / scene.spec.fps as f64;
-    let Some((first, rest)) = pipes.split_first_mut() else {
-        bail!("no pipeline");
-    };
     let rb0 = renderer.readback_times();
     let t0 = Instant::now();
-    let mut out = first.process(
+    let mut out = pipe.process(
         renderer,
         &f.input.rgba8,
         w,
@@ -305,7 +344,7 @@ fn run_frame(
     if !tracked {
         // Lost: render at the true pose so that every stage is still timed.
         let track_ms = out.timings.track_ms;
-        out = first.process_with_pose(
+        out = pipe.process_with_pose(
             renderer,
             &f.input.rgba8,
             w,
@@ -316,17 +355,9 @@ fn run_frame(
         )?;
         out.timings.track_ms = track_ms;
     }
-    let pose = out.camera_from_marker.unwrap_or(f.camera_from_marker);
-    let mut sum: StageTimings = out.timings;
-    for p in rest {
-        let o = p.process_with_pose(renderer, &f.input.rgba8, w, h, f.time_s, key_time, pose)?;
-        sum.animate_ms += o.timings.animate_ms;
-        sum.texture_ms += o.timings.texture_ms;
-        sum.diminish_ms += o.timings.diminish_ms;
-        sum.composite_ms += o.timings.composite_ms;
-    }
     let end_to_end = ms(t0);
     let rb = renderer.readback_times().since(&rb0);
+    let sum: StageTimings = out.timings;
     Ok((
         out,
         Sample {
@@ -482,29 +513,15 @@ fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str)
     }
 
     let settings = plan.method.settings();
-    let mut pipes = Vec::with_capacity(config.props as usize);
-    pipes.push(pipeline_for(&scene, renderer, settings).map_err(anyhow::Error::msg)?);
-    if config.props > 1 {
-        let (plate, plate_pose) = scene.clean_plate(renderer)?;
-        let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
-        for _ in 1..config.props {
-            let mut p = ArPipeline::new(
-                renderer,
-                scene.model.clone(),
-                0,
-                CameraModel::pinhole(scene.intrinsics),
-                marker_from_prop(),
-                None,
-                settings,
-            )?;
-            p.set_clean_plate(plate.clone(), plate_pose);
-            pipes.push(p);
-        }
+    let mut pipe = pipeline_for(&scene, renderer, settings).map_err(anyhow::Error::msg)?;
+    for _ in 1..config.props {
+        pipe.add_prop(renderer, scene.model.clone(), 0, marker_from_prop())?;
     }
+    pipe.set_render_path(config.path);
 
     bar.set_message("warming up");
     for f in &frames[..plan.warmup as usize] {
-        run_frame(&mut pipes, renderer, &scene, f)?;
+        run_frame(&mut pipe, renderer, &scene, f)?;
         bar.inc(1);
     }
 
@@ -519,7 +536,7 @@ fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str)
     let mut samples = Vec::with_capacity(plan.frames as usize);
     let mut outputs = Vec::with_capacity(plan.frames as usize);
     for f in &frames[plan.warmup as usize..] {
-        let (mut out, sample) = run_frame(&mut pipes, renderer, &scene, f)?;
+        let (mut out, sample) = run_frame(&mut pipe, renderer, &scene, f)?;
         // Keep what the measurement needs (the image and the pose), drop the masks.
         out.twin_mask = Vec::new();
         out.key_mask = Vec::new();
@@ -534,7 +551,7 @@ fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str)
         .map(|f| f.input.rgba8.len() + f.ground_truth.rgba8.len())
         .sum::<usize>()
         + outputs.iter().map(|o| o.rgba8.len()).sum::<usize>();
-    drop(pipes);
+    drop(pipe);
 
     // Quality, outside the timed loop.
     bar.set_message("measuring");
@@ -588,18 +605,22 @@ fn table(rows: &[Row]) -> String {
     let mut t = String::new();
     let _ = writeln!(
         t,
-        "| size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |"
+        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |"
     );
     let _ = writeln!(
         t,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for r in rows {
         let c = r.config;
         let _ = write!(
             t,
-            "| {}x{} | {} | {} |",
-            c.width, c.height, r.actual_vertices, c.props
+            "| {} | {}x{} | {} | {} |",
+            c.path.name(),
+            c.width,
+            c.height,
+            r.actual_vertices,
+            c.props
         );
         for (_, s) in &r.stages {
             let _ = write!(t, " {} |", cell(*s));
@@ -624,7 +645,7 @@ fn table(rows: &[Row]) -> String {
 
 pub fn run(args: Args) -> Result<()> {
     let started = Instant::now();
-    let plan = plan(args)?;
+    let mut plan = plan(args)?;
     if let Some(dir) = plan.json.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -633,6 +654,8 @@ pub fn run(args: Args) -> Result<()> {
     let backend = format!("{:?}", renderer.backend());
     let (cpu, cores) = cpu_description();
     let load_start = load_average();
+    let auto = RenderPath::auto(&renderer);
+    plan.configs = with_paths(&plan.configs, plan.paths.as_deref(), auto);
     eprintln!(
         "renderer: {adapter}\n{} configurations, {} warm-up + {} timed frames each",
         plan.configs.len(),
@@ -642,9 +665,10 @@ pub fn run(args: Args) -> Result<()> {
     let mut rows = Vec::new();
     for (k, &c) in plan.configs.iter().enumerate() {
         let label = format!(
-            "[{}/{}] {}x{}, {} vertices, {} prop{}",
+            "[{}/{}] {} path, {}x{}, {} vertices, {} prop{}",
             k + 1,
             plan.configs.len(),
+            c.path.name(),
             c.width,
             c.height,
             c.vertices,
@@ -665,10 +689,10 @@ pub fn run(args: Args) -> Result<()> {
     let load_end = load_average();
     let load = |l: Option<f64>| l.map_or_else(|| "n/a".to_string(), |l| format!("{l:.2}"));
 
-    let props_meaning = "N props = N independent ArPipelines on the same frame: the first \
-                         tracks the marker (process), the other N-1 reuse its tracked pose \
-                         (process_with_pose); track is paid once a frame, every other stage N \
-                         times; PSNR is of the first prop's output";
+    let props_meaning = "N props = one ArPipeline drawing N props a frame (add_prop): track, \
+                         fill and composite once, pose and draw per prop; copies of the bust at \
+                         the same place (worst-case overdraw; the output and PSNR are the \
+                         single prop's)";
     let readback_meaning = "readback = mapping GPU results and copying them to CPU memory \
                             (unpad, depth decode), taken out of texture; texture includes \
                             waiting for the GPU (gpu_wait), which on a software rasteriser is \
@@ -685,6 +709,12 @@ pub fn run(args: Args) -> Result<()> {
         load(load_end)
     );
     let _ = writeln!(out, "- method: {}", plan.method.describe());
+    let _ = writeln!(
+        out,
+        "- render path: cpu = our rasteriser (pa-raster), gpu = wgpu on the adapter above; \
+         the pipeline picks {} on this machine",
+        auto.name()
+    );
     let _ = writeln!(
         out,
         "- frames: {} timed after {} warm-up per configuration; times in ms, median / p95; \
@@ -709,6 +739,7 @@ pub fn run(args: Args) -> Result<()> {
                 .map(|(n, s)| (n.to_string(), stat_json(*s)))
                 .collect();
             json!({
+                "render_path": r.config.path.name(),
                 "width": r.config.width,
                 "height": r.config.height,
                 "requested_vertices": r.config.vertices,
@@ -732,6 +763,7 @@ pub fn run(args: Args) -> Result<()> {
     let doc = json!({
         "adapter": adapter,
         "backend": backend,
+        "default_render_path": auto.name(),
         "cpu": cpu,
         "cores": cores,
         "load_average_start": load_start,
@@ -765,6 +797,18 @@ mod tests {
             &[1, 4, 16],
         );
         assert_eq!(c.len(), 8);
+        assert_eq!((c[0].width, c[0].vertices, c[0].props), (1280, 8_000, 1));
+        let p = with_paths(&c, None, RenderPath::Cpu);
+        assert_eq!(p.len(), 9);
+        assert_eq!((p[0].path, p[1].path), (RenderPath::Cpu, RenderPath::Gpu));
+        assert_eq!(p[0].vertices, p[1].vertices);
+        assert!(p[2..].iter().all(|c| c.path == RenderPath::Cpu));
+        let both = with_paths(
+            &c,
+            Some(&[RenderPath::Gpu, RenderPath::Cpu]),
+            RenderPath::Cpu,
+        );
+        assert_eq!(both.len(), 16);
         assert!(c.iter().all(|c| {
             let base = [
                 (c.width, c.height) == (1280, 720),

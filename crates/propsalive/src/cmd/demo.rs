@@ -4,7 +4,8 @@
 //! camera), and for every frame runs the real tracker on the camera image of the physical key
 //! prop, animates the twin to the in-between, textures it from the live frame, removes the
 //! real prop and composites. Writes to `out/demo/`: the composited frames, side-by-side strips
-//! (input | output | ground truth), an animated GIF preview, a JSON Lines log and a report.
+//! (input | output | ground truth), the composited frames as an H.264 MP4 (`demo.mp4`, at the
+//! scene's frame rate), an animated GIF preview, a JSON Lines log and a report.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -71,6 +72,11 @@ pub fn run(args: Args) -> Result<()> {
     let mut log = String::new();
     let mut gif_frames = Vec::new();
     let out_dir = args.out.clone();
+    // The demo's files are replaced on every run (the writer renames into place at the end).
+    let mp4_path = args.out.join("demo.mp4");
+    let mut options = pa_video::Mp4WriterOptions::new(pa_video::Fps::from_f64(spec.fps as f64)?);
+    options.overwrite = true;
+    let mut mp4 = pa_video::Mp4Writer::create(&mp4_path, w, h, options)?;
     let metrics = run_scene(
         &mut renderer,
         spec.clone(),
@@ -80,6 +86,7 @@ pub fn run(args: Args) -> Result<()> {
             let name = format!("frame_{:04}.png", f.index);
             save_png(&out_dir.join("frames").join(&name), w, h, &out.rgba8)
                 .map_err(|e| e.to_string())?;
+            mp4.write_frame(&out.rgba8).map_err(|e| e.to_string())?;
             let strip = hstack(&[&f.input.rgba8, &out.rgba8, &f.ground_truth.rgba8], w, h);
             save_png(&out_dir.join("strip").join(&name), w * 3, h, &strip)
                 .map_err(|e| e.to_string())?;
@@ -106,6 +113,7 @@ pub fn run(args: Args) -> Result<()> {
     )
     .map_err(anyhow::Error::msg)?;
     bar.finish_and_clear();
+    mp4.finish()?;
     pa_model::export::write_atomic(&args.out.join("log.jsonl"), log.as_bytes())?;
     write_gif(&args.out.join("preview.gif"), gif_frames)?;
 
@@ -135,6 +143,7 @@ pub fn run(args: Args) -> Result<()> {
     for (what, p) in [
         ("composited frames", "frames/"),
         ("input | output | ground truth", "strip/"),
+        ("composited video (H.264 MP4)", "demo.mp4"),
         ("animated preview", "preview.gif"),
         ("per-frame log", "log.jsonl"),
         ("report", "report.md"),

@@ -1,12 +1,14 @@
 //! One module per subcommand; each has `Args` (raw flags) and `run`.
 
 pub mod bench;
+pub mod calibrate;
 pub mod camera_export;
 pub mod demo;
 pub mod eval;
 pub mod export;
 pub mod inspect;
 pub mod marker;
+pub mod preview;
 pub mod render;
 pub mod run;
 pub mod track;

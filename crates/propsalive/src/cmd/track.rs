@@ -1,10 +1,13 @@
 //! `propsalive track INPUT --calib FILE --tag-size-m S [...]`: marker detection, camera pose
-//! and the tracking state machine over an image or a folder of images (natural sort), one
-//! JSON line per frame (stdout, or `--out-log FILE.jsonl`), optionally drawing each frame
-//! with its detections and the marker axes (`--draw DIR`).
+//! and the tracking state machine over an image, a folder of images (natural sort) or a
+//! video file (`pa-video`: MP4/MOV H.264 without B-frames in the default build, anything
+//! FFmpeg reads with `--features ffmpeg`), one JSON line per frame (stdout, or `--out-log
+//! FILE.jsonl`), optionally drawing each frame with its detections and the marker axes
+//! (`--draw DIR`).
 //!
-//! Per-frame JSON: `frame` (index), `file`, `width`, `height`, `state` (`searching`,
-//! `detected`, `tracked`, `lost`), `events`, `detections` (`family`, `id`, `corners_px` as
+//! Per-frame JSON: `frame` (index), `file` (for a video: the video's name, and `time_s`, the
+//! frame's presentation time), `width`, `height`, `state` (`searching`, `detected`,
+//! `tracked`, `lost`), `events`, `detections` (`family`, `id`, `corners_px` as
 //! `[[x, y] x4]` TL, TR, BR, BL of the printed tag, OpenCV pixel centres, `hamming`,
 //! `decision_margin`), `pose` (the tracker's filtered `camera_from_marker`, present while
 //! `tracked`: `rotation_xyzw` unit quaternion, `translation_m`, plus `reprojection_rms_px` of
@@ -13,7 +16,9 @@
 //!
 //! Decisions:
 //! - A single image is one frame of a fresh track, so the state machine needs one sighting to
-//!   report `tracked` (`frames_to_track = 1`); folders use the tracker's defaults.
+//!   report `tracked` (`frames_to_track = 1`); folders and videos use the tracker's defaults
+//!   (temporal tracking: filter, region of interest). A video's frames are timed by their
+//!   presentation times (`--fps` times a folder's frames).
 //! - A file in a folder that has an image extension but cannot be decoded is **skipped**: a
 //!   warning names it on stderr, its JSON line has `"error"` and no detections, and the
 //!   tracker treats it as a frame without the marker. A single unreadable image, or a folder
@@ -22,7 +27,10 @@
 //!   (within 0.5 %): the intrinsics are scaled ([`pa_camera::Intrinsics::scaled_to`]) and a
 //!   note says so on stderr. Otherwise the command refuses. Every frame must have the first
 //!   frame's size.
-//! - Video files are recognised by extension and refused with a message (no decoder yet).
+//! - A video frame the decoder rejects is skipped like an unreadable image (the reader goes on
+//!   with the next frame). A video this build cannot decode fails at once with `pa-video`'s
+//!   message, which names the file, the codec and the cargo feature to enable. `--draw` names
+//!   a video's frames `<video stem>_NNNNNN.png`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -30,7 +38,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use glam::{DVec2, DVec3};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pa_camera::{CameraModel, Intrinsics};
 use pa_track::{
     Board, Detection, DetectorConfig, Pose, TagFamily, TrackEvent, TrackOutput, TrackState,
@@ -40,7 +48,8 @@ use serde_json::{json, Value};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// An image (.png, .jpg, .tif) or a folder of images (processed in natural order).
+    /// An image (.png, .jpg, .tif), a folder of images (processed in natural order) or a
+    /// video file (.mp4, .mov; others with `--features ffmpeg`).
     pub input: PathBuf,
     /// Camera calibration: OpenCV YAML (.yaml/.yml), or pa-camera TOML/JSON.
     #[arg(long, conflicts_with = "fov_deg")]
@@ -66,7 +75,8 @@ pub struct Args {
     /// Id of the board's top-left tag.
     #[arg(long, default_value_t = 0, requires = "board")]
     pub first_id: u32,
-    /// Frame rate of the sequence (for the pose filter's time base).
+    /// Frame rate of a folder of images (the pose filter's time base); a video's frames keep
+    /// their own times.
     #[arg(long, default_value_t = 24.0)]
     pub fps: f64,
     /// Thorough detection: an extra pass on a 2x upsampled image finds small, strongly tilted
@@ -135,9 +145,27 @@ pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
     }
 }
 
+/// The frames to track.
+pub enum Input {
+    /// Image files (one, or a folder's in natural order).
+    Images(Vec<PathBuf>),
+    /// A video file, opened.
+    Video(Box<pa_video::VideoReader>),
+}
+
+impl Input {
+    /// Frames, when known.
+    fn len(&self) -> Option<usize> {
+        match self {
+            Input::Images(v) => Some(v.len()),
+            Input::Video(r) => r.info().frame_count.map(|n| n as usize),
+        }
+    }
+}
+
 /// The resolved, checked configuration.
 pub struct Config {
-    pub frames: Vec<PathBuf>,
+    pub input: Input,
     pub single_image: bool,
     pub camera: CameraModel,
     pub target: TrackTarget,
@@ -176,7 +204,7 @@ pub(crate) fn list_frames(input: &Path) -> Result<(Vec<PathBuf>, bool)> {
     }
     if has_ext(input, VIDEO_EXTS) {
         bail!(
-            "{}: video input is not supported yet (no video decoder in this build); extract the frames to a folder first, e.g. `ffmpeg -i {} frames/%05d.png`, and pass the folder",
+            "{}: a video; this command reads images: extract the frames to a folder first, e.g. `ffmpeg -i {} frames/%05d.png`, and pass the folder",
             input.display(),
             input.display()
         );
@@ -239,6 +267,18 @@ fn draw_path(dir: &Path, frame: &Path) -> PathBuf {
     dir.join(format!("{stem}.png"))
 }
 
+/// Where `--draw` puts frame `index` of a video: `<video stem>_NNNNNN.png`.
+fn video_draw_path(dir: &Path, video: &Path, index: usize) -> PathBuf {
+    let stem = video.file_stem().unwrap_or_default().to_string_lossy();
+    dir.join(format!("{stem}_{index:06}.png"))
+}
+
+/// True when INPUT is a file to open as a video: any file that is not an image by extension
+/// (the reader recognises the container by its content).
+fn is_video_input(input: &Path) -> bool {
+    input.is_file() && !has_ext(input, IMAGE_EXTS)
+}
+
 /// Checks every flag and input before any work.
 pub fn resolve(args: &Args) -> Result<Config> {
     let family: TagFamily = args.family.parse()?;
@@ -282,18 +322,38 @@ pub fn resolve(args: &Args) -> Result<Config> {
         );
     }
 
-    let (frames, single_image) = list_frames(&args.input)?;
-    // The first frame whose header reads sets the size.
-    let (first, (width, height)) = frames
-        .iter()
-        .find_map(|p| image::image_dimensions(p).ok().map(|d| (p, d)))
-        .with_context(|| {
-            format!(
-                "{}: no readable image (tried {} file(s))",
-                args.input.display(),
-                frames.len()
-            )
-        })?;
+    let (input, single_image, first, (width, height)) = if is_video_input(&args.input) {
+        // pa-video's errors name the file, the codec and the feature: said as they are.
+        let reader = match pa_video::VideoReader::open(&args.input) {
+            Ok(r) => r,
+            Err(e @ pa_video::VideoError::UnsupportedContainer { .. })
+                if !has_ext(&args.input, VIDEO_EXTS) =>
+            {
+                bail!(
+                    "{}: not a supported image (use .png, .jpg, .jpeg, .tif or .tiff, or a folder of them) nor a video this build reads ({e})",
+                    args.input.display()
+                )
+            }
+            Err(e) => return Err(e.into()),
+        };
+        let size = (reader.info().width, reader.info().height);
+        let first = args.input.clone();
+        (Input::Video(Box::new(reader)), false, first, size)
+    } else {
+        let (frames, single_image) = list_frames(&args.input)?;
+        // The first frame whose header reads sets the size.
+        let (first, size) = frames
+            .iter()
+            .find_map(|p| image::image_dimensions(p).ok().map(|d| (p.clone(), d)))
+            .with_context(|| {
+                format!(
+                    "{}: no readable image (tried {} file(s))",
+                    args.input.display(),
+                    frames.len()
+                )
+            })?;
+        (Input::Images(frames), single_image, first, size)
+    };
     let camera = match (&args.calib, args.fov_deg) {
         (Some(path), _) => {
             let model = pa_camera::calib::load_calibration(path)
@@ -349,11 +409,16 @@ pub fn resolve(args: &Args) -> Result<Config> {
             bail!("--draw {} exists and is not a folder", dir.display());
         }
         if !args.force {
-            if let Some(p) = frames
-                .iter()
-                .map(|f| draw_path(dir, f))
-                .find(|p| p.exists())
-            {
+            let existing = match &input {
+                Input::Images(frames) => frames
+                    .iter()
+                    .map(|f| draw_path(dir, f))
+                    .find(|p| p.exists()),
+                Input::Video(r) => (0..r.info().frame_count.unwrap_or(0) as usize)
+                    .map(|i| video_draw_path(dir, &args.input, i))
+                    .find(|p| p.exists()),
+            };
+            if let Some(p) = existing {
                 bail!("{} exists; pass --force to replace it", p.display());
             }
         }
@@ -370,7 +435,7 @@ pub fn resolve(args: &Args) -> Result<Config> {
         tracker.frames_to_track = 1;
     }
     Ok(Config {
-        frames,
+        input,
         single_image,
         camera,
         target,
@@ -539,10 +604,12 @@ pub fn run(args: Args) -> Result<()> {
         cfg.tracker,
     )?;
     let (w0, h0) = (cfg.camera.intrinsics.width, cfg.camera.intrinsics.height);
+    let total = cfg.input.len();
     let bar = if cfg.single_image {
         ProgressBar::hidden()
     } else {
-        let b = ProgressBar::new(cfg.frames.len() as u64);
+        let b =
+            ProgressBar::with_draw_target(total.map(|n| n as u64), ProgressDrawTarget::stderr());
         b.set_style(
             ProgressStyle::with_template("{bar:40} {pos}/{len} frames {msg} ({eta})")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -551,19 +618,21 @@ pub fn run(args: Args) -> Result<()> {
     };
     let mut log = String::new();
     let mut stdout = std::io::stdout().lock();
-    let (mut skipped, mut tracked, mut seen) = (0usize, 0usize, 0usize);
+    let (mut skipped, mut tracked, mut seen, mut count) = (0usize, 0usize, 0usize, 0usize);
     let mut times = Vec::new();
-    for (i, path) in cfg.frames.iter().enumerate() {
-        let name = path
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        let t_s = i as f64 / cfg.fps;
-        let decoded =
-            image::open(path).with_context(|| format!("{}: cannot read the image", path.display()));
+    let mut frames = FrameStream::new(cfg.input, &args.input);
+    while let Some(f) = frames.next(cfg.fps)? {
+        let TrackFrame {
+            index: i,
+            name,
+            draw_as,
+            time_s: t_s,
+            pts_s,
+            decoded,
+        } = f;
+        count += 1;
         let gray = match decoded {
-            Ok(img) => img.to_luma8(),
+            Ok(img) => img,
             Err(e) => {
                 if cfg.single_image {
                     return Err(e);
@@ -573,6 +642,9 @@ pub fn run(args: Args) -> Result<()> {
                 let out = tracker.update_with_detections(Vec::new(), t_s)?;
                 let mut v = frame_json(i, &name, 0, 0, &out, 0.0);
                 v["error"] = json!(format!("{e:#}"));
+                if let Some(t) = pts_s {
+                    v["time_s"] = json!(round(t, 6));
+                }
                 emit(&mut log, &mut stdout, cfg.out_log.is_some(), &v)?;
                 bar.inc(1);
                 continue;
@@ -581,7 +653,7 @@ pub fn run(args: Args) -> Result<()> {
         if (gray.width(), gray.height()) != (w0, h0) {
             bail!(
                 "{} is {}x{} but the sequence (and camera) is {w0}x{h0}; all frames must have one size",
-                path.display(),
+                draw_as.display(),
                 gray.width(),
                 gray.height()
             );
@@ -590,7 +662,7 @@ pub fn run(args: Args) -> Result<()> {
         let t0 = Instant::now();
         let out = tracker
             .update(&frame, t_s)
-            .with_context(|| format!("tracking in {}", path.display()))?;
+            .with_context(|| format!("tracking in {}", draw_as.display()))?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         times.push(ms);
         if out.raw.is_some() {
@@ -599,11 +671,17 @@ pub fn run(args: Args) -> Result<()> {
         if out.state == TrackState::Tracked {
             tracked += 1;
         }
-        let v = frame_json(i, &name, gray.width(), gray.height(), &out, ms);
+        let mut v = frame_json(i, &name, gray.width(), gray.height(), &out, ms);
+        if let Some(t) = pts_s {
+            v["time_s"] = json!(round(t, 6));
+        }
         emit(&mut log, &mut stdout, cfg.out_log.is_some(), &v)?;
         if let Some(dir) = &cfg.draw {
             let img = draw_frame(&gray, &out, &cfg.camera, cfg.axis_m);
-            let p = draw_path(dir, path);
+            let p = match &frames {
+                FrameStream::Video { .. } => video_draw_path(dir, &args.input, i),
+                FrameStream::Images { .. } => draw_path(dir, &draw_as),
+            };
             let rgba = image::DynamicImage::ImageRgb8(img).to_rgba8();
             super::write_png_atomic(&p, rgba.width(), rgba.height(), rgba.as_raw())?;
         }
@@ -611,9 +689,12 @@ pub fn run(args: Args) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if skipped == cfg.frames.len() {
+    if count == 0 {
+        bail!("{}: no frames", args.input.display());
+    }
+    if skipped == count {
         bail!(
-            "{}: none of the {} image(s) could be read",
+            "{}: none of the {} frame(s) could be read",
             args.input.display(),
             skipped
         );
@@ -628,14 +709,142 @@ pub fn run(args: Args) -> Result<()> {
     times.sort_by(f64::total_cmp);
     let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
     eprintln!(
-        "{} frame(s): target seen in {seen}, tracked in {tracked}, {skipped} unreadable skipped; median detection + pose {median:.2} ms/frame{}",
-        cfg.frames.len(),
+        "{count} frame(s): target seen in {seen}, tracked in {tracked}, {skipped} unreadable skipped; median detection + pose {median:.2} ms/frame{}",
         cfg.out_log
             .as_ref()
             .map(|p| format!("; log {}", p.display()))
             .unwrap_or_default()
     );
     Ok(())
+}
+
+/// One frame to track.
+struct TrackFrame {
+    index: usize,
+    /// The JSON's `file`.
+    name: String,
+    /// The file in messages (a still, or the video).
+    draw_as: PathBuf,
+    /// The tracker's time, seconds.
+    time_s: f64,
+    /// A video frame's presentation time.
+    pts_s: Option<f64>,
+    decoded: Result<image::GrayImage>,
+}
+
+/// Decode errors in a row after which a video is given up.
+const MAX_VIDEO_ERRORS_IN_ROW: usize = 25;
+
+/// The frames of the input, one at a time (a video is decoded as it goes).
+enum FrameStream {
+    Images {
+        paths: Vec<PathBuf>,
+        next: usize,
+    },
+    Video {
+        reader: Box<pa_video::VideoReader>,
+        path: PathBuf,
+        name: String,
+        next: usize,
+        errors_in_row: usize,
+        /// The last frame's time, seconds (a skipped frame is one frame period later).
+        last_time_s: Option<f64>,
+    },
+}
+
+impl FrameStream {
+    fn new(input: Input, path: &Path) -> Self {
+        match input {
+            Input::Images(paths) => FrameStream::Images { paths, next: 0 },
+            Input::Video(reader) => FrameStream::Video {
+                reader,
+                path: path.to_path_buf(),
+                name: path
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned(),
+                next: 0,
+                errors_in_row: 0,
+                last_time_s: None,
+            },
+        }
+    }
+
+    fn next(&mut self, fps: f64) -> Result<Option<TrackFrame>> {
+        match self {
+            FrameStream::Images { paths, next } => {
+                let i = *next;
+                let Some(path) = paths.get(i) else {
+                    return Ok(None);
+                };
+                *next += 1;
+                let decoded = image::open(path)
+                    .map(|img| img.to_luma8())
+                    .with_context(|| format!("{}: cannot read the image", path.display()));
+                Ok(Some(TrackFrame {
+                    index: i,
+                    name: path
+                        .file_name()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned(),
+                    draw_as: path.clone(),
+                    time_s: i as f64 / fps,
+                    pts_s: None,
+                    decoded,
+                }))
+            }
+            FrameStream::Video {
+                reader,
+                path,
+                name,
+                next,
+                errors_in_row,
+                last_time_s,
+            } => {
+                let i = *next;
+                let (decoded, pts_s) = match reader.next_frame() {
+                    Ok(None) => return Ok(None),
+                    Ok(Some(f)) => {
+                        *errors_in_row = 0;
+                        let pts = f.pts.as_secs_f64();
+                        let img = image::RgbaImage::from_raw(f.width, f.height, f.rgba)
+                            .map(|img| image::DynamicImage::ImageRgba8(img).to_luma8())
+                            .with_context(|| {
+                                format!(
+                                    "{}: frame {i} has the wrong number of bytes",
+                                    path.display()
+                                )
+                            });
+                        (img, Some(pts))
+                    }
+                    // One damaged frame: skipped; the reader goes on with the next one.
+                    Err(
+                        e @ (pa_video::VideoError::Decode { .. }
+                        | pa_video::VideoError::Corrupt { .. }),
+                    ) if *errors_in_row < MAX_VIDEO_ERRORS_IN_ROW => {
+                        *errors_in_row += 1;
+                        (Err(anyhow::Error::from(e)), None)
+                    }
+                    Err(e) => return Err(e.into()),
+                };
+                *next += 1;
+                // Time for the tracker: the frame's own, else one frame period after the last.
+                let period_s = 1.0 / reader.info().fps.map_or(fps, |f| f.as_f64());
+                let time_s = pts_s.unwrap_or(last_time_s.map_or(0.0, |t| t + period_s));
+                *last_time_s = Some(time_s);
+                Ok(Some(TrackFrame {
+                    index: i,
+                    name: name.clone(),
+                    draw_as: path.clone(),
+                    time_s,
+                    pts_s,
+                    decoded,
+                }))
+            }
+        }
+    }
 }
 
 fn emit(log: &mut String, stdout: &mut impl Write, to_file: bool, v: &Value) -> Result<()> {

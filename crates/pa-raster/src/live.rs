@@ -1,0 +1,307 @@
+//! The per-fragment live-texturing look-up: where the key-pose surface point sits in the
+//! camera frame, and whether that sample is valid. The same math, order of tests and codes as
+//! `pa-render`'s `live.wgsl` (`live_lookup`); see `pa_render::live` for the derivation.
+
+use glam::Vec3;
+
+/// Codes of a twin pixel's sample (the numbers of `pa_render::LiveSample`).
+pub mod code {
+    /// Background (no twin surface).
+    pub const NONE: u8 = 0;
+    /// Fallback: the key-pose point projects outside the frame, or behind the camera.
+    pub const OUTSIDE: u8 = 1;
+    /// Fallback: the key-pose normal faces away from the camera.
+    pub const BACK_FACING: u8 = 2;
+    /// Fallback: another key-pose surface hides the point (visibility map).
+    pub const OCCLUDED: u8 = 3;
+    /// Fallback: the animated surface faces the camera far more squarely than the key pose.
+    pub const STRETCHED: u8 = 4;
+    /// A live sample from the frame.
+    pub const VALID: u8 = 255;
+}
+
+/// The frame camera of the look-up (f32 copies of the calibrated model at the frame's size).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameCamera {
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: f32,
+    pub height: f32,
+    pub k1: f32,
+    pub k2: f32,
+    pub p1: f32,
+    pub p2: f32,
+    pub k3: f32,
+}
+
+impl FrameCamera {
+    /// From a calibrated camera whose intrinsics are at the frame's size.
+    pub fn new(model: &pa_camera::CameraModel) -> Self {
+        let (k, d) = (&model.intrinsics, &model.distortion);
+        Self {
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            width: k.width as f32,
+            height: k.height as f32,
+            k1: d.k1 as f32,
+            k2: d.k2 as f32,
+            p1: d.p1 as f32,
+            p2: d.p2 as f32,
+            k3: d.k3 as f32,
+        }
+    }
+
+    /// OpenCV radial-tangential distortion of a normalised point.
+    #[inline]
+    fn distort(&self, x: f32, y: f32) -> (f32, f32) {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        let xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
+        let yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
+        (xd, yd)
+    }
+
+    /// The radial map is still increasing at `r^2` (beyond, points fold back into the image).
+    #[inline]
+    fn radial_monotonic(&self, r2: f32) -> bool {
+        1.0 + r2 * (3.0 * self.k1 + r2 * (5.0 * self.k2 + r2 * 7.0 * self.k3)) > 0.0
+    }
+}
+
+/// Settings of the look-up (the `LiveTexturing` fields of the GPU path).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LiveParams {
+    pub frame_camera: FrameCamera,
+    /// Occlusion test against the key-pose depth of the same camera.
+    pub visibility: bool,
+    pub depth_tolerance_rel: f32,
+    pub depth_tolerance_m: f32,
+    pub min_facing_cos: f32,
+    /// 0 disables the stretch test.
+    pub max_stretch: f32,
+    /// Per linear RGB channel, `(constant, n.x, n.y, n.z)` of the world-space normal.
+    pub fallback_irradiance: [[f32; 4]; 3],
+}
+
+impl LiveParams {
+    /// The GPU path's defaults: no visibility, tolerances 0.5% + 1 mm, facing cosine 0.05, no
+    /// stretch test, fallback gain 1.
+    pub fn new(frame_camera: FrameCamera) -> Self {
+        Self {
+            frame_camera,
+            visibility: false,
+            depth_tolerance_rel: 0.005,
+            depth_tolerance_m: 0.001,
+            min_facing_cos: 0.05,
+            max_stretch: 0.0,
+            fallback_irradiance: [[1.0, 0.0, 0.0, 0.0]; 3],
+        }
+    }
+}
+
+/// Cosine between a normal and the direction from the point to the camera (at the origin).
+#[inline]
+fn facing_cos(p: Vec3, n: Vec3) -> f32 {
+    let len2 = n.dot(n) * p.dot(p);
+    if len2 > 0.0 {
+        -n.dot(p) / len2.sqrt()
+    } else {
+        -1.0
+    }
+}
+
+/// Inverse depth at a texel of the key-pose buffer (clamped to the buffer), 0 where empty.
+pub trait InvDepthMap {
+    fn size(&self) -> (u32, u32);
+    fn inv_z_clamped(&self, x: i32, y: i32) -> f32;
+}
+
+impl InvDepthMap for crate::raster::VisBuffer {
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    #[inline]
+    fn inv_z_clamped(&self, x: i32, y: i32) -> f32 {
+        let x = x.clamp(0, self.width as i32 - 1) as usize;
+        let y = y.clamp(0, self.height as i32 - 1) as usize;
+        self.inv_z[y * self.width as usize + x]
+    }
+}
+
+/// The look-up of one fragment: key-pose point `pc` and normal `nc`, animated point `pa` and
+/// normal `na`, all in the frame camera's coordinates. Returns the code and the frame pixel.
+/// The visibility map, when used, is the key pose rasterised by the same camera (pinhole, at
+/// the frame's size).
+#[inline]
+pub fn live_lookup(
+    p: &LiveParams,
+    key_depth: &impl InvDepthMap,
+    pc: Vec3,
+    nc: Vec3,
+    pa: Vec3,
+    na: Vec3,
+) -> (u8, [f32; 2]) {
+    let cam = &p.frame_camera;
+    // (Written so that NaN fails every test.)
+    let in_front = pc.z > 1e-6;
+    if !in_front {
+        return (code::OUTSIDE, [0.0; 2]);
+    }
+    let (x, y) = (pc.x / pc.z, pc.y / pc.z);
+    if !cam.radial_monotonic(x * x + y * y) {
+        return (code::OUTSIDE, [0.0; 2]);
+    }
+    let (xd, yd) = cam.distort(x, y);
+    let pixel = [cam.fx * xd + cam.cx, cam.fy * yd + cam.cy];
+    if !(pixel[0] >= -0.5
+        && pixel[1] >= -0.5
+        && pixel[0] <= cam.width - 0.5
+        && pixel[1] <= cam.height - 0.5)
+    {
+        return (code::OUTSIDE, pixel);
+    }
+    let cos_key = facing_cos(pc, nc);
+    let facing = cos_key > p.min_facing_cos;
+    if !facing {
+        return (code::BACK_FACING, pixel);
+    }
+    if p.max_stretch > 0.0 && facing_cos(pa, na) > p.max_stretch * cos_key.max(0.0) {
+        return (code::STRETCHED, pixel);
+    }
+    if p.visibility {
+        // Pinhole projection into the map (rasterised without distortion).
+        let q = [cam.fx * x + cam.cx, cam.fy * y + cam.cy];
+        let (mw, mh) = key_depth.size();
+        if !(q[0] >= -0.5 && q[1] >= -0.5 && q[0] <= mw as f32 - 0.5 && q[1] <= mh as f32 - 0.5) {
+            return (code::OUTSIDE, pixel);
+        }
+        let (x0, y0) = (
+            crate::texture::floor_i64(q[0]) as i32,
+            crate::texture::floor_i64(q[1]) as i32,
+        );
+        // The farthest surface (smallest non-zero 1/z) of the four texels around q.
+        let mut inv_z = 0.0f32;
+        for k in 0..4 {
+            let v = key_depth.inv_z_clamped(x0 + (k & 1), y0 + (k >> 1));
+            if v > 0.0 && (inv_z == 0.0 || v < inv_z) {
+                inv_z = v;
+            }
+        }
+        if pc.z * inv_z > 1.0 + p.depth_tolerance_rel + p.depth_tolerance_m * inv_z {
+            return (code::OCCLUDED, pixel);
+        }
+    }
+    (code::VALID, pixel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Flat(f32);
+    impl InvDepthMap for Flat {
+        fn size(&self) -> (u32, u32) {
+            (100, 100)
+        }
+        fn inv_z_clamped(&self, _: i32, _: i32) -> f32 {
+            self.0
+        }
+    }
+
+    fn params() -> LiveParams {
+        LiveParams::new(FrameCamera {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 49.5,
+            cy: 49.5,
+            width: 100.0,
+            height: 100.0,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        })
+    }
+
+    #[test]
+    fn codes_in_the_gpu_order() {
+        let p = params();
+        let toward = Vec3::new(0.0, 0.0, -1.0);
+        let at = Vec3::new(0.0, 0.0, 1.0);
+        let map = Flat(1.0);
+        assert_eq!(live_lookup(&p, &map, at, toward, at, toward).0, code::VALID);
+        let (c, px) = live_lookup(&p, &map, Vec3::new(0.1, -0.2, 1.0), toward, at, toward);
+        assert_eq!(c, code::VALID);
+        assert!((px[0] - 59.5).abs() < 1e-4 && (px[1] - 29.5).abs() < 1e-4);
+        // Behind the camera, outside the image.
+        assert_eq!(
+            live_lookup(&p, &map, Vec3::new(0.0, 0.0, -1.0), toward, at, toward).0,
+            code::OUTSIDE
+        );
+        assert_eq!(
+            live_lookup(&p, &map, Vec3::new(2.0, 0.0, 1.0), toward, at, toward).0,
+            code::OUTSIDE
+        );
+        // Facing away.
+        assert_eq!(
+            live_lookup(&p, &map, at, -toward, at, toward).0,
+            code::BACK_FACING
+        );
+        // Occluded (with visibility) by a surface at 0.5 m; not without.
+        let mut pv = p;
+        pv.visibility = true;
+        assert_eq!(
+            live_lookup(&pv, &Flat(2.0), at, toward, at, toward).0,
+            code::OCCLUDED
+        );
+        assert_eq!(
+            live_lookup(&pv, &Flat(1.0), at, toward, at, toward).0,
+            code::VALID
+        );
+        assert_eq!(
+            live_lookup(&pv, &Flat(0.0), at, toward, at, toward).0,
+            code::VALID
+        );
+        // Stretched: grazing in the key pose, face-on now.
+        let mut ps = p;
+        ps.max_stretch = 2.0;
+        let grazing = Vec3::new(1.0, 0.0, -0.2).normalize();
+        assert_eq!(
+            live_lookup(&ps, &map, at, grazing, at, toward).0,
+            code::STRETCHED
+        );
+    }
+
+    #[test]
+    fn distortion_matches_pa_camera() {
+        let model = pa_camera::CameraModel {
+            intrinsics: pa_camera::Intrinsics {
+                fx: 500.0,
+                fy: 510.0,
+                cx: 320.0,
+                cy: 240.0,
+                width: 640,
+                height: 480,
+            },
+            distortion: pa_camera::Distortion {
+                k1: -0.2,
+                k2: 0.05,
+                p1: 0.001,
+                p2: -0.002,
+                k3: 0.01,
+            },
+        };
+        let mut p = params();
+        p.frame_camera = FrameCamera::new(&model);
+        let pc = Vec3::new(0.2, -0.15, 1.0);
+        let (_, px) = live_lookup(&p, &Flat(0.0), pc, Vec3::NEG_Z, pc, Vec3::NEG_Z);
+        let want = model.pixel_from_camera(pc.as_dvec3()).unwrap();
+        assert!((px[0] as f64 - want.x).abs() < 1e-3 && (px[1] as f64 - want.y).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,194 @@
+//! What the preview runs, resolved before the window opens: the renderer, the frame
+//! pipeline, the frame source and the initial state, for the built-in scene or for a shot
+//! with a folder of stills, a video file or a live camera.
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use pa_pipeline::ar::{ArPipeline, ArSettings};
+use pa_pipeline::shot::Shot;
+use pa_render::Renderer;
+use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+
+use super::source::{CameraSource, FrameSource, SceneSource, StillsSource, VideoSource};
+use super::state::{KeyPose, PreviewState};
+use crate::cmd::run::{self, InputSpec};
+
+/// Everything the preview runs, before the window opens.
+pub struct Setup {
+    pub renderer: Renderer,
+    pub pipeline: ArPipeline,
+    pub source: Box<dyn FrameSource>,
+    pub state: PreviewState,
+    /// Animation frames per second.
+    pub fps: f32,
+    /// Length of the drawn marker axes, metres.
+    pub axes_len_m: f32,
+    /// Size of the camera frames.
+    pub frame_size: (u32, u32),
+}
+
+/// The clip's last frame at `fps`.
+fn last_frame(model: &pa_model::Model, animation: usize, fps: f32) -> u32 {
+    model
+        .animations
+        .get(animation)
+        .map_or(0, |a| (a.duration_s * fps).round().max(0.0) as u32)
+}
+
+/// The built-in scene: generated on the fly, key poses at frames 0 and 24.
+pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
+    let (w, h) = crate::cmd::parse_size(size.unwrap_or("640x360"))?;
+    let mut renderer = Renderer::new().context("starting the renderer")?;
+    println!("renderer: {}", renderer.adapter_info());
+    let spec = pa_scene::SceneSpec {
+        width: w,
+        height: h,
+        key_frames: vec![0, 24],
+        // One sample a pixel: the preview is about speed (eval measures with 2x2).
+        supersample: 1,
+        ..pa_scene::SceneSpec::default()
+    };
+    let fps = spec.fps;
+    let scene = pa_scene::Scene::new(spec, &mut renderer).map_err(anyhow::Error::msg)?;
+    let pipeline = pa_scene::eval::pipeline_for(&scene, &mut renderer, ArSettings::ours())
+        .map_err(anyhow::Error::msg)?;
+    let last = last_frame(&scene.model, 0, fps);
+    let keys = scene
+        .spec
+        .key_frames
+        .iter()
+        .zip(["A", "B", "C", "D"].iter().cycle())
+        .map(|(&frame, name)| KeyPose {
+            name: (*name).into(),
+            frame,
+        })
+        .collect();
+    let axes_len_m = scene
+        .board
+        .tags
+        .iter()
+        .map(|t| t.size_m as f32)
+        .fold(0.0, f32::max)
+        * 1.5;
+    Ok(Setup {
+        renderer,
+        pipeline,
+        source: Box::new(SceneSource::new(scene)),
+        state: PreviewState::new(last, keys, 0),
+        fps,
+        axes_len_m,
+        frame_size: (w, h),
+    })
+}
+
+/// A shot and its input: a folder of stills, a video file (frame i = animation frame i, as
+/// `propsalive run` pairs them) or a live camera.
+pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> Result<Setup> {
+    let shot = Shot::load(shot_path)?;
+    let spec = run::parse_input(input)?;
+    if camera_size.is_some() && !matches!(spec, InputSpec::Camera(_)) {
+        bail!("--camera-size is for a camera input (--input camera:/dev/videoN)");
+    }
+    // The source first: it knows the frame size the camera model needs.
+    let (source, width, height, first, live): (Box<dyn FrameSource>, u32, u32, String, bool) =
+        match spec {
+            InputSpec::Folder(dir) => {
+                let (stills, _) = crate::cmd::track::list_frames(&dir)?;
+                let (first, (width, height)) = stills
+                    .iter()
+                    .find_map(|p| image::image_dimensions(p).ok().map(|d| (p.clone(), d)))
+                    .with_context(|| {
+                        format!(
+                            "{}: no readable still (tried {} file(s))",
+                            dir.display(),
+                            stills.len()
+                        )
+                    })?;
+                let source = StillsSource::new(stills, width, height, shot.fps)?;
+                (
+                    Box::new(source),
+                    width,
+                    height,
+                    first.display().to_string(),
+                    false,
+                )
+            }
+            InputSpec::Video(path) => {
+                let source = VideoSource::open(&path, shot.fps)?;
+                let (w, h) = source.size();
+                (Box::new(source), w, h, path.display().to_string(), false)
+            }
+            InputSpec::Camera(device) => {
+                let size = run::camera_request(camera_size, &shot, shot_path)?;
+                let camera = run::open_camera(&device, size, shot.fps)?;
+                let source = CameraSource::new(camera);
+                let (w, h) = source.size();
+                (Box::new(source), w, h, device.display().to_string(), true)
+            }
+        };
+    let camera = run::camera_for_shot(&shot, shot_path, width, height, &first)?;
+    let board = run::board_from_shot(&shot, shot_path)?;
+    let axes_len_m = board
+        .tags
+        .iter()
+        .map(|t| t.size_m as f32)
+        .fold(0.0, f32::max)
+        * 1.5;
+    let model_path = Shot::resolve(shot_path, &shot.model);
+    let model = pa_model::Model::load(&model_path)
+        .with_context(|| format!("loading the model {}", model_path.display()))?;
+    let animation = shot.check_model(shot_path, &model)?;
+    let mut renderer = Renderer::new().context("starting the renderer")?;
+    println!("renderer: {}", renderer.adapter_info());
+    // Stills (and the frames of a video file, still i = animation frame i) are not a video to
+    // the tracker: the camera may move between them, so every one is tracked on its own, as
+    // `propsalive run` does. A live camera is a video: temporal tracking (filter, search
+    // region) steadies the view.
+    let tracker_cfg = if live {
+        TrackerConfig::default()
+    } else {
+        TrackerConfig {
+            frames_to_track: 1,
+            use_roi: false,
+            filter: pa_track::PoseFilterConfig {
+                enabled: false,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    };
+    let tracker = Tracker::new(
+        camera,
+        TrackTarget::Board(board),
+        DetectorConfig::default(),
+        tracker_cfg,
+    )?;
+    let last = last_frame(&model, animation, shot.fps);
+    let pipeline = ArPipeline::new(
+        &mut renderer,
+        model,
+        animation,
+        camera,
+        shot.placement.marker_from_prop(),
+        Some(tracker),
+        ArSettings::ours(),
+    )?;
+    let keys = shot
+        .key_poses
+        .iter()
+        .map(|k| KeyPose {
+            name: k.name.clone(),
+            frame: k.frame,
+        })
+        .collect();
+    Ok(Setup {
+        renderer,
+        pipeline,
+        source,
+        state: PreviewState::new(last, keys, shot.present_key_index()),
+        fps: shot.fps,
+        axes_len_m,
+        frame_size: (width, height),
+    })
+}

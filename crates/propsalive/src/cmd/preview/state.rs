@@ -1,0 +1,360 @@
+//! The preview's state machine: which animation frame is shown, play/pause, the key prop in
+//! front of the camera, diminishing and the overlays. [`PreviewState::apply`] turns an
+//! [`Action`] into the new state and, for actions with side effects (files, quitting), an
+//! [`Effect`] the window code carries out. Pure, tested without a window.
+
+use super::keys::Action;
+
+/// A key pose: an animation frame that exists as a physical prop.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct KeyPose {
+    pub name: String,
+    pub frame: u32,
+}
+
+/// The overlays drawn over the composited frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Overlays {
+    /// The tracked marker's axes.
+    pub axes: bool,
+    /// The key-pose and twin masks, tinted.
+    pub masks: bool,
+    /// The twin's silhouette at the previous and next in-between.
+    pub onion: bool,
+    /// A captured frame at 50 %.
+    pub line_up: bool,
+    /// The key list on screen.
+    pub help: bool,
+}
+
+impl Overlays {
+    /// Overlays named on the command line (`axes`, `masks`, `onion`, `lineup`, `help`).
+    pub fn parse(names: &[String]) -> Result<Self, String> {
+        let mut o = Self::default();
+        for n in names {
+            match n.trim().to_ascii_lowercase().as_str() {
+                "axes" => o.axes = true,
+                "masks" => o.masks = true,
+                "onion" => o.onion = true,
+                "lineup" | "line-up" => o.line_up = true,
+                "help" => o.help = true,
+                "" => {}
+                other => {
+                    return Err(format!(
+                        "unknown overlay {other:?} (axes, masks, onion, lineup, help)"
+                    ))
+                }
+            }
+        }
+        Ok(o)
+    }
+}
+
+/// What the window code must do after an action.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Effect {
+    /// Nothing beyond the state change.
+    None,
+    /// Save the current composited frame.
+    Capture,
+    /// Start recording (the state says `recording`).
+    StartRecording,
+    /// Stop recording.
+    StopRecording,
+    /// Print the key list.
+    PrintHelp,
+    /// Select another capture for the line-up (-1 earlier, +1 later).
+    SelectCapture(i32),
+    /// Turning the line-up on: it needs a capture to show.
+    LineUpOn,
+    Quit,
+}
+
+/// Everything the user controls.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreviewState {
+    /// The animation frame shown (0-based).
+    pub anim_frame: u32,
+    /// The clip's last frame.
+    pub last_frame: u32,
+    pub playing: bool,
+    /// The key poses (at least one) and which one is in front of the camera.
+    pub key_poses: Vec<KeyPose>,
+    pub key: usize,
+    /// Diminished reality: the real prop is removed where the twin does not cover it.
+    pub diminish: bool,
+    pub overlays: Overlays,
+    pub recording: bool,
+}
+
+impl PreviewState {
+    /// A playing preview at frame 0 with the given key poses (an empty list gets one at frame
+    /// 0), diminishing on, no overlays.
+    pub fn new(last_frame: u32, mut key_poses: Vec<KeyPose>, present_key: usize) -> Self {
+        if key_poses.is_empty() {
+            key_poses.push(KeyPose {
+                name: "key".into(),
+                frame: 0,
+            });
+        }
+        let key = present_key.min(key_poses.len() - 1);
+        Self {
+            anim_frame: 0,
+            last_frame,
+            playing: true,
+            key_poses,
+            key,
+            diminish: true,
+            overlays: Overlays::default(),
+            recording: false,
+        }
+    }
+
+    /// Number of frames in the clip.
+    pub fn frame_count(&self) -> u32 {
+        self.last_frame + 1
+    }
+
+    /// The key pose in front of the camera.
+    pub fn key_pose(&self) -> &KeyPose {
+        &self.key_poses[self.key.min(self.key_poses.len() - 1)]
+    }
+
+    /// Sets the animation frame (clamped to the clip), e.g. from a mouse drag.
+    pub fn set_frame(&mut self, frame: u32) {
+        self.anim_frame = frame.min(self.last_frame);
+    }
+
+    /// After a camera frame was shown: a playing animation moves on one frame (looping).
+    pub fn advance(&mut self) {
+        if self.playing {
+            self.anim_frame = if self.anim_frame >= self.last_frame {
+                0
+            } else {
+                self.anim_frame + 1
+            };
+        }
+    }
+
+    /// Applies one action.
+    pub fn apply(&mut self, action: Action) -> Effect {
+        let n = self.frame_count() as i64;
+        match action {
+            Action::Step(d) => {
+                self.anim_frame = (self.anim_frame as i64 + d as i64).rem_euclid(n) as u32;
+                Effect::None
+            }
+            Action::Scrub(d) => {
+                self.anim_frame = (self.anim_frame as i64 + d as i64).clamp(0, n - 1) as u32;
+                Effect::None
+            }
+            Action::First => {
+                self.anim_frame = 0;
+                Effect::None
+            }
+            Action::Last => {
+                self.anim_frame = self.last_frame;
+                Effect::None
+            }
+            Action::PlayPause => {
+                self.playing = !self.playing;
+                Effect::None
+            }
+            Action::NextKeyPose => {
+                self.key = (self.key + 1) % self.key_poses.len();
+                Effect::None
+            }
+            Action::ToggleDiminish => {
+                self.diminish = !self.diminish;
+                Effect::None
+            }
+            Action::ToggleAxes => {
+                self.overlays.axes = !self.overlays.axes;
+                Effect::None
+            }
+            Action::ToggleMasks => {
+                self.overlays.masks = !self.overlays.masks;
+                Effect::None
+            }
+            Action::ToggleOnion => {
+                self.overlays.onion = !self.overlays.onion;
+                Effect::None
+            }
+            Action::ToggleLineUp => {
+                self.overlays.line_up = !self.overlays.line_up;
+                if self.overlays.line_up {
+                    Effect::LineUpOn
+                } else {
+                    Effect::None
+                }
+            }
+            Action::SelectCapture(d) => Effect::SelectCapture(d),
+            Action::Capture => Effect::Capture,
+            Action::ToggleRecording => {
+                self.recording = !self.recording;
+                if self.recording {
+                    Effect::StartRecording
+                } else {
+                    Effect::StopRecording
+                }
+            }
+            Action::Help => {
+                self.overlays.help = !self.overlays.help;
+                Effect::PrintHelp
+            }
+            Action::Quit => Effect::Quit,
+        }
+    }
+
+    /// The overlay flags as a short string for the status line: upper case = on.
+    pub fn flags(&self) -> String {
+        let f = |on: bool, c: char| {
+            if on {
+                c.to_ascii_uppercase()
+            } else {
+                c
+            }
+        };
+        [
+            f(self.diminish, 'd'),
+            f(self.overlays.axes, 'a'),
+            f(self.overlays.masks, 'm'),
+            f(self.overlays.onion, 'o'),
+            f(self.overlays.line_up, 'l'),
+        ]
+        .iter()
+        .collect()
+    }
+}
+
+/// The capture selected after moving `delta` from `current` among `len` captures; the latest
+/// when none was selected. `None` when there is no capture.
+pub fn select_capture(current: Option<usize>, len: usize, delta: i32) -> Option<usize> {
+    if len == 0 {
+        return None;
+    }
+    let cur = current.unwrap_or(len - 1).min(len - 1) as i64;
+    Some((cur + delta as i64).clamp(0, len as i64 - 1) as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state() -> PreviewState {
+        PreviewState::new(
+            48,
+            vec![
+                KeyPose {
+                    name: "A".into(),
+                    frame: 0,
+                },
+                KeyPose {
+                    name: "B".into(),
+                    frame: 24,
+                },
+            ],
+            0,
+        )
+    }
+
+    #[test]
+    fn stepping_wraps_and_scrubbing_clamps() {
+        let mut s = state();
+        assert_eq!(s.apply(Action::Step(-1)), Effect::None);
+        assert_eq!(s.anim_frame, 48);
+        s.apply(Action::Step(1));
+        assert_eq!(s.anim_frame, 0);
+        s.apply(Action::Step(10));
+        s.apply(Action::Step(10));
+        assert_eq!(s.anim_frame, 20);
+        s.apply(Action::Step(-30));
+        assert_eq!(s.anim_frame, 39);
+        s.apply(Action::Scrub(20));
+        assert_eq!(s.anim_frame, 48);
+        s.apply(Action::Scrub(-100));
+        assert_eq!(s.anim_frame, 0);
+        s.apply(Action::Last);
+        assert_eq!(s.anim_frame, 48);
+        s.apply(Action::First);
+        assert_eq!(s.anim_frame, 0);
+        s.set_frame(1000);
+        assert_eq!(s.anim_frame, 48);
+    }
+
+    #[test]
+    fn playing_advances_and_loops_paused_holds() {
+        let mut s = state();
+        assert!(s.playing);
+        s.set_frame(47);
+        s.advance();
+        assert_eq!(s.anim_frame, 48);
+        s.advance();
+        assert_eq!(s.anim_frame, 0);
+        s.apply(Action::PlayPause);
+        assert!(!s.playing);
+        s.advance();
+        assert_eq!(s.anim_frame, 0);
+    }
+
+    #[test]
+    fn key_poses_cycle() {
+        let mut s = state();
+        assert_eq!(s.key_pose().frame, 0);
+        s.apply(Action::NextKeyPose);
+        assert_eq!(s.key_pose().name, "B");
+        assert_eq!(s.key_pose().frame, 24);
+        s.apply(Action::NextKeyPose);
+        assert_eq!(s.key_pose().name, "A");
+        // No key poses given: one at frame 0.
+        let one = PreviewState::new(10, vec![], 3);
+        assert_eq!(one.key_pose().frame, 0);
+    }
+
+    #[test]
+    fn toggles_and_effects() {
+        let mut s = state();
+        assert_eq!(s.flags(), "Damol");
+        s.apply(Action::ToggleDiminish);
+        s.apply(Action::ToggleAxes);
+        s.apply(Action::ToggleMasks);
+        assert_eq!(s.apply(Action::ToggleOnion), Effect::None);
+        assert_eq!(s.apply(Action::ToggleLineUp), Effect::LineUpOn);
+        assert_eq!(s.flags(), "dAMOL");
+        assert_eq!(s.apply(Action::ToggleLineUp), Effect::None);
+        assert!(!s.diminish && s.overlays.axes && s.overlays.masks && s.overlays.onion);
+        assert_eq!(s.apply(Action::ToggleRecording), Effect::StartRecording);
+        assert!(s.recording);
+        assert_eq!(s.apply(Action::ToggleRecording), Effect::StopRecording);
+        assert!(!s.recording);
+        assert_eq!(s.apply(Action::Capture), Effect::Capture);
+        assert_eq!(s.apply(Action::Help), Effect::PrintHelp);
+        assert!(s.overlays.help);
+        assert_eq!(s.apply(Action::Quit), Effect::Quit);
+        assert_eq!(
+            s.apply(Action::SelectCapture(-1)),
+            Effect::SelectCapture(-1)
+        );
+    }
+
+    #[test]
+    fn overlays_from_the_command_line() {
+        let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let o = Overlays::parse(&names(&["axes", " Onion", "line-up", ""])).unwrap();
+        assert!(o.axes && o.onion && o.line_up && !o.masks && !o.help);
+        assert_eq!(Overlays::parse(&[]).unwrap(), Overlays::default());
+        let e = Overlays::parse(&names(&["axes", "bogus"])).unwrap_err();
+        assert!(e.contains("\"bogus\""), "{e}");
+    }
+
+    #[test]
+    fn capture_selection() {
+        assert_eq!(select_capture(None, 0, -1), None);
+        assert_eq!(select_capture(None, 3, 0), Some(2));
+        assert_eq!(select_capture(None, 3, -1), Some(1));
+        assert_eq!(select_capture(Some(0), 3, -1), Some(0));
+        assert_eq!(select_capture(Some(1), 3, 5), Some(2));
+        // A stale selection past the end is clamped.
+        assert_eq!(select_capture(Some(9), 3, 0), Some(2));
+    }
+}
