@@ -4,14 +4,14 @@
 //! tracking states and animation frames, poses within a stated tolerance). Also: `--mp4`
 //! output, `--passes`, Ctrl-C and resume over a video, and inputs this build cannot read.
 
-use std::collections::BTreeMap;
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::sync::{Mutex, OnceLock};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use pa_scene::prop::PropSpec;
-use pa_scene::scene::{marker_from_prop, set_board};
+use common::{bin, command, files, fresh_root, lock, log, run, stderr, write_prop_and_shot};
 use pa_scene::{Scene, SceneSpec};
 use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, RateControl, VideoReader};
 
@@ -43,16 +43,6 @@ struct Take {
     mp4_out: PathBuf,
 }
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_propsalive")
-}
-
-/// Tests run one at a time (each runs the renderer).
-fn lock() -> std::sync::MutexGuard<'static, ()> {
-    static L: Mutex<()> = Mutex::new(());
-    L.lock().unwrap_or_else(|e| e.into_inner())
-}
-
 fn take() -> Option<&'static Take> {
     static T: OnceLock<Option<Take>> = OnceLock::new();
     T.get_or_init(make_take).as_ref()
@@ -66,21 +56,7 @@ fn make_take() -> Option<Take> {
             return None;
         }
     };
-    // Takes of earlier test runs older than an hour are removed.
-    let tmp = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    for e in std::fs::read_dir(tmp).into_iter().flatten().flatten() {
-        let old = e
-            .metadata()
-            .and_then(|m| m.modified())
-            .ok()
-            .and_then(|t| t.elapsed().ok())
-            .is_some_and(|age| age > Duration::from_secs(3600));
-        if old && e.file_name().to_string_lossy().starts_with("run_video_") {
-            let _ = std::fs::remove_dir_all(e.path());
-        }
-    }
-    let root = tmp.join(format!("run_video_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
+    let root = fresh_root("run_video_");
     let stills = root.join("stills");
     std::fs::create_dir_all(&stills).expect("mkdir");
     let spec = SceneSpec {
@@ -108,24 +84,7 @@ fn make_take() -> Option<Take> {
             .expect("save");
     }
     writer.finish().expect("finish mp4");
-    let glb = pa_scene::prop_glb(&PropSpec::default()).expect("glb");
-    std::fs::write(root.join("prop.glb"), glb).expect("write glb");
-    let m = marker_from_prop();
-    assert!((m.transform_vector3(glam::Vec3::Y) - glam::Vec3::NEG_Z).length() < 1e-6);
-    let mut shot = format!(
-        "model = \"prop.glb\"\nanimation = \"Animate\"\nfps = {}\npresent_key = \"A\"\n\n\
-         [[key_poses]]\nname = \"A\"\nframe = 0\n\n[camera]\nfov_y_deg = {}\n\n\
-         [placement]\nupright = true\nyaw_deg = 0.0\n\n[marker]\nfamily = \"tag36h11\"\n",
-        spec.fps, spec.fov_y_deg
-    );
-    for t in set_board().tags {
-        shot.push_str(&format!(
-            "[[marker.tags]]\nid = {}\ncenter_m = [{}, {}]\nsize_m = {}\n",
-            t.id, t.center_m.x, t.center_m.y, t.size_m
-        ));
-    }
-    let shot_path = root.join("shot.toml");
-    std::fs::write(&shot_path, shot).expect("write shot");
+    let shot_path = write_prop_and_shot(&root, &spec);
     drop(renderer);
 
     let from_stills = root.join("from_stills");
@@ -152,56 +111,6 @@ fn make_take() -> Option<Take> {
         from_video,
         mp4_out,
     })
-}
-
-fn command(shot: &Path, input: &Path, out: &Path, extra: &[&str]) -> Command {
-    let mut c = Command::new(bin());
-    c.arg("run")
-        .arg(shot)
-        .arg("--input")
-        .arg(input)
-        .arg("--out")
-        .arg(out)
-        .args(extra);
-    c
-}
-
-fn run(shot: &Path, input: &Path, out: &Path, extra: &[&str]) -> Output {
-    command(shot, input, out, extra).output().expect("runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// The files of a take's sub-folder: name -> bytes (hidden temporary files included).
-fn files(dir: &Path, sub: &str) -> BTreeMap<String, Vec<u8>> {
-    let mut m = BTreeMap::new();
-    if let Ok(rd) = std::fs::read_dir(dir.join(sub)) {
-        for e in rd.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            match std::fs::read(e.path()) {
-                Ok(bytes) => {
-                    m.insert(name, bytes);
-                }
-                Err(err) if err.kind() == std::io::ErrorKind::NotFound => {}
-                Err(err) => panic!("read {name}: {err}"),
-            }
-        }
-    }
-    m
-}
-
-/// The log's lines, parsed; panics on a duplicate index or an unparsable line.
-fn log(dir: &Path) -> BTreeMap<u64, serde_json::Value> {
-    let text = std::fs::read_to_string(dir.join("log.jsonl")).expect("log");
-    let mut m = BTreeMap::new();
-    for line in text.lines() {
-        let v: serde_json::Value = serde_json::from_str(line).expect("json line");
-        let i = v["index"].as_u64().expect("index");
-        assert!(m.insert(i, v).is_none(), "duplicate log line for index {i}");
-    }
-    m
 }
 
 fn rgba(path: &Path) -> image::RgbaImage {
