@@ -8,7 +8,6 @@
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::Path;
 
 use glam::Vec3;
@@ -51,27 +50,16 @@ pub fn write(model: &Model, posed: &[PosedPrimitive], path: &Path) -> Result<(),
     write_atomic(path, &bytes).map_err(|e| ModelError::new(path, ErrorKind::Io(e)))
 }
 
-/// Writes a file atomically: a temporary file in the same folder, synced, then renamed.
+/// Writes a file atomically (see [`pa_io::write_atomic`]): never replaces a file that is not a
+/// regular file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    pa_io::write_atomic(path, bytes).map_err(Into::into)
+}
+
+/// Like [`write_atomic`], but only if nothing has the name `path` (see
+/// [`pa_io::write_new_atomic`]). Returns false when the name was taken.
+pub fn write_new_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<bool> {
+    pa_io::write_new_atomic(path, bytes).map_err(Into::into)
 }
 
 /// Wavefront OBJ text.

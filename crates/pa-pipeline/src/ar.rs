@@ -27,7 +27,7 @@ use pa_render::{
 };
 use pa_track::{GrayImage, TrackState, Tracker};
 
-use crate::composite::composite_twin_over_in;
+use crate::composite::{bounding_box, composite_twin_over_in};
 use crate::cpu_twin::CpuTwin;
 use crate::shading::{irradiance_samples, irradiance_samples_from, Irradiance, KeyDepth, KeyView};
 use crate::twin::{GpuTwin, TwinFrame};
@@ -289,10 +289,10 @@ fn hide_twin_interior(fill: &mut Mask, twin: &[bool], bbox: Bbox, r: usize) {
     let bh = y1 - y0 + 1;
     // Horizontal pass: run length of twin pixels to the left and right of each pixel.
     let mut h_ok = vec![false; bw * bh];
+    let mut left = vec![0usize; bw];
     for ly in 0..bh {
         let row = &twin[(y0 + ly) * w + x0..(y0 + ly) * w + x1 + 1];
         let mut run = 0usize;
-        let mut left = vec![0usize; bw];
         for (lx, &m) in row.iter().enumerate() {
             run = if m { run + 1 } else { 0 };
             left[lx] = run;
@@ -368,22 +368,6 @@ struct Textured {
 
 /// An inclusive pixel box `(x0, y0, x1, y1)`.
 type Bbox = (usize, usize, usize, usize);
-
-/// Bounding box of the set entries of a row-major mask (one pass over the frame).
-fn bbox_of(mask: &[bool], w: usize) -> Option<Bbox> {
-    let mut b: Option<Bbox> = None;
-    for (y, row) in mask.chunks_exact(w.max(1)).enumerate() {
-        let (Some(first), Some(last)) = (row.iter().position(|&m| m), row.iter().rposition(|&m| m))
-        else {
-            continue;
-        };
-        b = Some(match b {
-            None => (first, y, last, y),
-            Some((x0, y0, x1, _)) => (x0.min(first), y0, x1.max(last), y),
-        });
-    }
-    b
-}
 
 /// The full-frame mask of a CPU visibility buffer's surfaces, and its bounding box; work
 /// proportional to the buffer's dirty rectangle (the rest is a zeroed allocation).
@@ -890,7 +874,7 @@ impl ArPipeline {
                             irradiance_samples(p.model, &posed, p.marker_from_prop, &view, per_prop)
                         })
                         .collect();
-                    Irradiance::fit(&samples).unwrap_or_else(|| Irradiance::mean(&samples))
+                    Irradiance::fit_or_mean(&samples)
                 } else {
                     Irradiance::constant(gain.unwrap_or([1.0; 3]))
                 };
@@ -943,9 +927,9 @@ impl ArPipeline {
         let twin_mask: Vec<bool> = twin_depth.iter().map(|d| d.is_finite()).collect();
         let key_mask: Vec<bool> = key_depth_m.iter().map(|d| d.is_finite()).collect();
         Ok(Textured {
-            key_bbox: bbox_of(&key_mask, width as usize),
+            key_bbox: bounding_box(&key_mask, width as usize, height as usize),
             key_mask,
-            twin_bbox: bbox_of(&twin_mask, width as usize),
+            twin_bbox: bounding_box(&twin_mask, width as usize, height as usize),
             twin_rgba,
             twin_mask,
             live_counts,
@@ -1072,9 +1056,7 @@ impl ArPipeline {
                             )
                         })
                         .collect();
-                    params.fallback_irradiance = Irradiance::fit(&samples)
-                        .unwrap_or_else(|| Irradiance::mean(&samples))
-                        .rows;
+                    params.fallback_irradiance = Irradiance::fit_or_mean(&samples).rows;
                     params.visibility = true;
                     params.min_facing_cos = VISIBLE_MIN_FACING_COS;
                     params.max_stretch = MAX_STRETCH;
@@ -1164,8 +1146,8 @@ pub fn colour_gain(frame: &[u8], model_render: &[u8], mask: &[bool]) -> [f32; 3]
     for (i, &m) in mask.iter().enumerate() {
         if m {
             for c in 0..3 {
-                sf[c] += srgb_to_linear(frame[i * 4 + c]) as f64;
-                sm[c] += srgb_to_linear(model_render[i * 4 + c]) as f64;
+                sf[c] += pa_raster::srgb::srgb_to_linear(frame[i * 4 + c]) as f64;
+                sm[c] += pa_raster::srgb::srgb_to_linear(model_render[i * 4 + c]) as f64;
             }
         }
     }
@@ -1176,15 +1158,6 @@ pub fn colour_gain(frame: &[u8], model_render: &[u8], mask: &[bool]) -> [f32; 3]
         }
     }
     g
-}
-
-fn srgb_to_linear(v: u8) -> f32 {
-    let c = v as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 /// The homography of the marker plane (z = 0) from the plate view's pixels to the current

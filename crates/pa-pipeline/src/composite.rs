@@ -20,6 +20,8 @@
 //! reaches takes the mean twin colour of its covered neighbours. A test checks `alpha` against
 //! the exact area coverage of slanted half-planes.
 
+use pa_raster::srgb::{decode_lut, linear_to_srgb};
+
 /// Composites `twin_rgba8` (sRGB RGBA8) where `twin_mask` is set over `background` (sRGB
 /// RGBA8, written in place; alpha untouched). With `anti_alias`, the silhouette is smoothed as
 /// the module docs say; without, covered pixels are copied. Sizes must agree
@@ -75,7 +77,7 @@ pub fn composite_twin_over_in(
         }
         return true;
     }
-    let lut = srgb_to_linear_lut();
+    let lut = decode_lut();
     // The region: the twin's box grown by the window and the gradient stencil, clamped.
     let grow = BOX_RADIUS + 1;
     let (rx0, ry0) = (x0.saturating_sub(grow), y0.saturating_sub(grow));
@@ -216,7 +218,11 @@ fn pixel_coverage(d: f32, nx: f32, ny: f32) -> f32 {
 }
 
 /// Inclusive bounding box (x0, y0, x1, y1) of the set pixels.
-fn bounding_box(mask: &[bool], w: usize, h: usize) -> Option<(usize, usize, usize, usize)> {
+pub(crate) fn bounding_box(
+    mask: &[bool],
+    w: usize,
+    h: usize,
+) -> Option<(usize, usize, usize, usize)> {
     let mut b: Option<(usize, usize, usize, usize)> = None;
     for y in 0..h {
         let row = &mask[y * w..y * w + w];
@@ -230,27 +236,6 @@ fn bounding_box(mask: &[bool], w: usize, h: usize) -> Option<(usize, usize, usiz
         });
     }
     b
-}
-
-fn srgb_to_linear_lut() -> [f32; 256] {
-    std::array::from_fn(|v| {
-        let c = v as f32 / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    })
-}
-
-fn linear_to_srgb(l: f32) -> u8 {
-    let l = l.clamp(0.0, 1.0);
-    let c = if l <= 0.003_130_8 {
-        12.92 * l
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (c * 255.0 + 0.5) as u8
 }
 
 #[cfg(test)]
@@ -290,7 +275,7 @@ mod tests {
     fn slanted_edges_recover_area_coverage() {
         let (w, h) = (48u32, 48u32);
         let n = (w * h) as usize;
-        let lut = srgb_to_linear_lut();
+        let lut = decode_lut();
         for (k, c) in [
             (0.2f64, 20.3f64),
             (0.5, 11.7),

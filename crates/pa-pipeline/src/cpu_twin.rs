@@ -89,26 +89,27 @@ impl CpuTwin {
 
     /// The draw data of the posed frame (animated pose with its key pose).
     pub fn live_meshes<'a>(&'a self, model: &'a Model) -> Vec<CpuLiveMesh<'a>> {
-        self.primitives
-            .iter()
-            .enumerate()
-            .map(|(i, p)| CpuLiveMesh {
-                mesh: self.posed_mesh(model, p, &self.anim[i]),
-                key_positions_world: &self.key[i].positions_world,
-                key_normals_world: &self.key[i].normals_world,
-            })
-            .collect()
+        self.meshes_at(model, &self.anim)
     }
 
     /// The key pose drawn as a plain mesh (key positions for both poses).
     pub fn key_meshes<'a>(&'a self, model: &'a Model) -> Vec<CpuLiveMesh<'a>> {
+        self.meshes_at(model, &self.key)
+    }
+
+    /// Draw data of the primitives posed as `posed`, each with its key pose.
+    fn meshes_at<'a>(
+        &'a self,
+        model: &'a Model,
+        posed: &'a [PosedBuffers],
+    ) -> Vec<CpuLiveMesh<'a>> {
         self.primitives
             .iter()
-            .enumerate()
-            .map(|(i, p)| CpuLiveMesh {
-                mesh: self.posed_mesh(model, p, &self.key[i]),
-                key_positions_world: &self.key[i].positions_world,
-                key_normals_world: &self.key[i].normals_world,
+            .zip(posed.iter().zip(&self.key))
+            .map(|(p, (pose, key))| CpuLiveMesh {
+                mesh: self.posed_mesh(model, p, pose),
+                key_positions_world: &key.positions_world,
+                key_normals_world: &key.normals_world,
             })
             .collect()
     }

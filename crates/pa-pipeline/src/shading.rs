@@ -62,6 +62,11 @@ impl Irradiance {
             .map(|r| r[0] + r[1] * normal.x + r[2] * normal.y + r[3] * normal.z)
     }
 
+    /// [`Irradiance::fit`], or the mean ratio when there is no fit.
+    pub fn fit_or_mean(samples: &[IrradianceSample]) -> Self {
+        Self::fit(samples).unwrap_or_else(|| Self::mean(samples))
+    }
+
     /// Least-squares fit to `samples` (with a small ridge on the directional terms, so a
     /// narrow spread of normals does not extrapolate wildly), then a refit without the 20 %
     /// of samples with the largest residuals. `None` with fewer than [`MIN_SAMPLES`] samples
@@ -218,7 +223,7 @@ pub fn irradiance_samples_from<'a>(
     }
     let camera_from_model = (view.camera_from_world * world_from_model).as_dmat4();
     let world_from_model_rot = glam::Mat3::from_mat4(world_from_model);
-    let lut = srgb_lut();
+    let lut = pa_raster::srgb::decode_lut();
     let mut out = Vec::new();
     for (mesh, primitive, positions, normals) in posed {
         let Some(prim) = model
@@ -256,7 +261,7 @@ pub fn irradiance_samples_from<'a>(
             if !z.is_finite() || (pc.z - z).abs() > DEPTH_TOLERANCE_REL * z + DEPTH_TOLERANCE_M {
                 continue;
             }
-            let albedo = albedo_at(image, prim.uvs.get(v), factor, &lut);
+            let albedo = albedo_at(image, prim.uvs.get(v), factor, lut);
             if albedo.iter().any(|&a| a < MIN_ALBEDO) {
                 continue;
             }
@@ -298,17 +303,6 @@ fn albedo_at(
 }
 
 /// sRGB byte to linear.
-fn srgb_lut() -> [f32; 256] {
-    std::array::from_fn(|v| {
-        let c = v as f32 / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -300,23 +300,24 @@ impl TriSetup {
 
 /// Screen bounds of the part of a camera-space triangle in front of the near plane.
 fn screen_rect(cam: &RasterCamera, v: [DVec3; 3], near: f64) -> Option<PixelRect> {
-    let mut pts: [(f64, f64); 6] = [(0.0, 0.0); 6];
+    let mut pts = [[0.0; 2]; 6];
     let mut n = 0;
     for i in 0..3 {
         let (p, q) = (v[i], v[(i + 1) % 3]);
         if p.z >= near {
-            pts[n] = cam.pixel_from_camera(p)?;
+            let (x, y) = cam.pixel_from_camera(p)?;
+            pts[n] = [x, y];
             n += 1;
         }
         if (p.z >= near) != (q.z >= near) {
             let t = (near - p.z) / (q.z - p.z);
             let m = p + (q - p) * t;
-            pts[n] = cam.pixel_from_camera(DVec3::new(m.x, m.y, near))?;
+            let (x, y) = cam.pixel_from_camera(DVec3::new(m.x, m.y, near))?;
+            pts[n] = [x, y];
             n += 1;
         }
     }
-    let pts: Vec<[f64; 2]> = pts[..n].iter().map(|&(x, y)| [x, y]).collect();
-    rect_of_points(cam, &pts)
+    rect_of_points(cam, &pts[..n])
 }
 
 /// The pixel centres' rectangle spanned by points in pixels, clipped to the image.
@@ -505,28 +506,6 @@ impl VisBuffer {
                     }
                 }
             });
-    }
-}
-
-/// Sets up every triangle of an indexed mesh whose vertices are in camera space; appends to
-/// `out` and returns, per appended set-up, the index of its first vertex index (`3 * t`).
-pub fn setup_triangles(
-    cam: &RasterCamera,
-    camera_positions: &[Vec3],
-    indices: &[u32],
-    keep_ccw: Option<bool>,
-    out: &mut Vec<TriSetup>,
-    first_index: &mut Vec<u32>,
-) {
-    for (t, tri) in indices.chunks_exact(3).enumerate() {
-        let get = |i: u32| camera_positions.get(i as usize).copied();
-        let (Some(a), Some(b), Some(c)) = (get(tri[0]), get(tri[1]), get(tri[2])) else {
-            continue;
-        };
-        if let Some(s) = TriSetup::new_culled(cam, a, b, c, keep_ccw) {
-            out.push(s);
-            first_index.push(3 * t as u32);
-        }
     }
 }
 

@@ -46,7 +46,7 @@ impl GpuContext {
             }
         }
 
-        adapters.sort_by_key(|a| rank(&a.get_info()));
+        adapters.sort_by_key(|a| adapter_rank(&a.get_info()));
         let mut rejected = Vec::new();
         let mut chosen = None;
         for adapter in adapters {
@@ -113,7 +113,9 @@ pub(crate) fn describe(info: &wgpu::AdapterInfo) -> String {
     )
 }
 
-fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+/// Sort key of adapters in order of preference (smaller first): hardware before software,
+/// Vulkan/Metal/DX12 before GL. Shared with the preview window's adapter choice.
+pub fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
     let device = match info.device_type {
         wgpu::DeviceType::DiscreteGpu => 0,
         wgpu::DeviceType::IntegratedGpu => 1,

@@ -77,6 +77,7 @@ mod readback;
 mod renderer;
 mod texture;
 
+pub use context::adapter_rank;
 pub use error::{RenderError, NO_ADAPTER_HINT};
 pub use live::{GpuVisibility, LiveCamera, LiveDraw, LiveRenderedFrame, LiveSample, LiveTexturing};
 pub use mesh::{CpuMesh, GpuMesh, MAX_MORPH_TARGETS};

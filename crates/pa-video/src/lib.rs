@@ -44,6 +44,7 @@ mod ffmpeg;
 pub mod h264;
 pub mod mp4;
 mod reader;
+pub mod still;
 mod writer;
 
 pub use camera::{Camera, CameraFormat, CameraPixelFormat};

@@ -89,6 +89,8 @@ pub struct Mp4Summary {
 /// Largest picture OpenH264 encodes (either orientation).
 const MAX_LONG_SIDE: u32 = 3840;
 const MAX_SHORT_SIDE: u32 = 2160;
+/// The smallest side OpenH264 encodes (it fails inside the library below this).
+pub const MIN_SIDE: u32 = 16;
 
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
@@ -179,7 +181,29 @@ fn temp_path_for(path: &Path) -> PathBuf {
 }
 
 impl Mp4Writer {
-    /// Creates the temporary file and the encoder for `width x height` frames (1 to
+    /// Whether H.264 output of `width` x `height` can be written: between
+    /// [`MIN_SIDE`]x[`MIN_SIDE`] (OpenH264 rejects smaller frames) and the level's maximum.
+    /// Callers check this before a long take, not after it.
+    pub fn check_frame_size(width: u32, height: u32) -> Result<(), VideoError> {
+        let coded = (width + (width & 1), height + (height & 1));
+        if width < MIN_SIDE
+            || height < MIN_SIDE
+            || coded.0.max(coded.1) > MAX_LONG_SIDE
+            || coded.0.min(coded.1) > MAX_SHORT_SIDE
+        {
+            return Err(VideoError::InvalidSetting {
+                name: "frame size",
+                value: format!("{width}x{height}"),
+                reason: format!(
+                    "H.264 output must be between {MIN_SIDE}x{MIN_SIDE} and \
+                     {MAX_LONG_SIDE}x{MAX_SHORT_SIDE} (either orientation)"
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Creates the temporary file and the encoder for `width x height` frames (16x16 to
     /// 3840x2160 in either orientation; odd sizes are padded to even for coding and cropped
     /// back on display, see the crate docs).
     pub fn create(
@@ -189,21 +213,8 @@ impl Mp4Writer {
         options: Mp4WriterOptions,
     ) -> Result<Mp4Writer, VideoError> {
         let path = path.as_ref().to_path_buf();
+        Self::check_frame_size(width, height)?;
         let coded = (width + (width & 1), height + (height & 1));
-        if width == 0
-            || height == 0
-            || coded.0.max(coded.1) > MAX_LONG_SIDE
-            || coded.0.min(coded.1) > MAX_SHORT_SIDE
-        {
-            return Err(VideoError::InvalidSetting {
-                name: "frame size",
-                value: format!("{width}x{height}"),
-                reason: format!(
-                    "H.264 output must be between 1x1 and {MAX_LONG_SIDE}x{MAX_SHORT_SIDE} \
-                     (either orientation)"
-                ),
-            });
-        }
         if let RateControl::Quality { qp_min, qp_max } = options.rate_control {
             if qp_min > qp_max || qp_max > 51 {
                 return Err(VideoError::InvalidSetting {
@@ -540,6 +551,18 @@ impl Mp4Writer {
         drop(file);
 
         if self.options.overwrite {
+            // Never swap a regular file in for a FIFO, a device node or a link.
+            if let Err(e) = pa_io::check_replaceable(&self.path) {
+                self.done = true; // keep the temporary file: it holds the take
+                return Err(VideoError::io(
+                    &self.path,
+                    "replace",
+                    std::io::Error::other(format!(
+                        "{e} - the finished video was kept as {}",
+                        temp.display()
+                    )),
+                ));
+            }
             std::fs::rename(&temp, &self.path)
                 .map_err(|e| VideoError::io(&self.path, "rename into place", e))?;
         } else {

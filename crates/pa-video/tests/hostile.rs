@@ -340,3 +340,39 @@ fn a_missing_camera_is_a_clear_error() {
     let err = Camera::open("/dev/video0", 0, 480, 30).expect_err("bad request");
     assert!(matches!(err, VideoError::InvalidSetting { .. }), "{err:?}");
 }
+
+/// Regression (issue 11): an MP4 below 16x16 failed inside OpenH264 after the whole take; the
+/// size is refused when the writer is made (and by `check_frame_size` before a take).
+#[test]
+fn regression_frames_below_16x16_are_refused_up_front() {
+    let e = pa_video::Mp4Writer::check_frame_size(12, 12).expect_err("too small");
+    assert!(e.to_string().contains("16x16"), "{e}");
+    assert!(pa_video::Mp4Writer::check_frame_size(16, 16).is_ok());
+    let dir = std::env::temp_dir().join(format!("pa_video_small_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let opts = pa_video::Mp4WriterOptions::new(pa_video::Fps::new(24, 1).expect("fps"));
+    assert!(pa_video::Mp4Writer::create(dir.join("s.mp4"), 8, 8, opts).is_err());
+}
+
+/// Regression (issue 11): an MP4 written with `overwrite` renamed a regular file over a FIFO.
+#[test]
+fn regression_overwrite_never_replaces_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = std::env::temp_dir().join(format!("pa_video_fifo_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let fifo = dir.join("out.mp4");
+    let ok = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo");
+    assert!(ok.success());
+    let mut opts = pa_video::Mp4WriterOptions::new(pa_video::Fps::new(24, 1).expect("fps"));
+    opts.overwrite = true;
+    let mut w = pa_video::Mp4Writer::create(&fifo, 32, 32, opts).expect("create");
+    w.write_frame(&vec![128u8; 32 * 32 * 4]).expect("frame");
+    let e = w.finish().expect_err("a FIFO is not replaced");
+    assert!(e.to_string().contains("FIFO"), "{e}");
+    let meta = std::fs::symlink_metadata(&fifo).expect("still there");
+    assert!(meta.file_type().is_fifo());
+}

@@ -33,7 +33,7 @@ impl Log for Stderr {
             Level::Debug => "debug",
             Level::Trace => "trace",
         };
-        eprintln!("{tag}: {}", record.args());
+        errln!("{tag}: {}", record.args());
     }
 
     fn flush(&self) {}

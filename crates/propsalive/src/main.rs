@@ -4,6 +4,11 @@
 //! `Args` structs of each command module, and each module resolves them into a checked
 //! configuration before any work starts, so that bad input fails fast with a clear message.
 
+// Printing goes through `output`'s macros, which never panic on a closed or full stream.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
+
+#[macro_use]
+mod output;
 mod cmd;
 mod logger;
 mod plot;
@@ -70,7 +75,7 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            errln!("error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }

@@ -234,6 +234,8 @@ fn plan(args: Args) -> Result<Plan> {
     } else {
         axes(&sizes, &vertices, &props)
     };
+    // Checked before minutes of timing: never a FIFO, a device or a link.
+    pa_io::check_replaceable(&args.json)?;
     Ok(Plan {
         configs,
         frames,
@@ -357,15 +359,15 @@ fn run_frame(
     }
     let end_to_end = ms(t0);
     let rb = renderer.readback_times().since(&rb0);
-    let sum: StageTimings = out.timings;
+    let t: StageTimings = out.timings;
     Ok((
         out,
         Sample {
-            track: sum.track_ms,
-            animate: sum.animate_ms,
-            texture: (sum.texture_ms - rb.copy_ms).max(0.0),
-            diminish: sum.diminish_ms,
-            composite: sum.composite_ms,
+            track: t.track_ms,
+            animate: t.animate_ms,
+            texture: (t.texture_ms - rb.copy_ms).max(0.0),
+            diminish: t.diminish_ms,
+            composite: t.composite_ms,
             readback: rb.copy_ms,
             gpu_wait: rb.wait_ms,
             end_to_end,
@@ -656,7 +658,7 @@ pub fn run(args: Args) -> Result<()> {
     let load_start = load_average();
     let auto = RenderPath::auto(&renderer);
     plan.configs = with_paths(&plan.configs, plan.paths.as_deref(), auto);
-    eprintln!(
+    errln!(
         "renderer: {adapter}\n{} configurations, {} warm-up + {} timed frames each",
         plan.configs.len(),
         plan.warmup,
@@ -677,7 +679,7 @@ pub fn run(args: Args) -> Result<()> {
         );
         let row = run_config(&mut renderer, &plan, c, &label)
             .with_context(|| format!("configuration {label}"))?;
-        eprintln!(
+        errln!(
             "{label}: {:.1} ms end-to-end median, {:.1} fps ({:.0} s)",
             row.end_to_end.median,
             fps(row.end_to_end),
@@ -780,8 +782,8 @@ pub fn run(args: Args) -> Result<()> {
     });
     pa_model::export::write_atomic(&plan.json, serde_json::to_string_pretty(&doc)?.as_bytes())
         .with_context(|| format!("writing {}", plan.json.display()))?;
-    print!("{out}");
-    println!("\nwrote {} ({:.0} s in all)", plan.json.display(), total_s);
+    out!("{out}");
+    outln!("\nwrote {} ({:.0} s in all)", plan.json.display(), total_s);
     Ok(())
 }
 

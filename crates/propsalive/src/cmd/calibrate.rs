@@ -188,7 +188,7 @@ fn name(p: &Path) -> String {
 
 pub fn run(args: Args) -> Result<()> {
     let cfg = resolve(&args)?;
-    println!(
+    outln!(
         "calibrating from {} image(s): {}",
         cfg.images.len(),
         cfg.description
@@ -196,25 +196,28 @@ pub fn run(args: Args) -> Result<()> {
     let mut cal = Calibrator::new(cfg.target.clone())?;
     for path in &cfg.images {
         match cal.add_file(path)? {
-            ImageOutcome::View { points } => println!("  {}: {points} corners", name(path)),
+            ImageOutcome::View { points } => outln!("  {}: {points} corners", name(path)),
             ImageOutcome::Skipped(reason) => {
-                println!("  {}: skipped ({reason})", name(path));
+                outln!("  {}: skipped ({reason})", name(path));
             }
         }
     }
     let views = cal.views().len();
-    println!(
+    outln!(
         "{views} view(s) of {} image(s); {} skipped",
         cfg.images.len(),
         cal.skipped().len()
     );
     let result = cal.calibrate(&cfg.options)?;
 
-    println!("per-view RMS reprojection error (px):");
+    outln!("per-view RMS reprojection error (px):");
     for v in &result.views {
-        println!(
+        outln!(
             "  {}: {:.3} (max {:.3}) over {} corners",
-            v.name, v.rms_px, v.max_px, v.points
+            v.name,
+            v.rms_px,
+            v.max_px,
+            v.points
         );
     }
     let (k, d, s) = (
@@ -222,17 +225,24 @@ pub fn run(args: Args) -> Result<()> {
         result.camera.distortion,
         result.std_dev,
     );
-    println!(
+    outln!(
         "camera {}x{} (value +- one standard deviation):",
-        k.width, k.height
+        k.width,
+        k.height
     );
-    println!(
+    outln!(
         "  fx = {:.3} +- {:.3} px, fy = {:.3} +- {:.3} px",
-        k.fx, s.fx, k.fy, s.fy
+        k.fx,
+        s.fx,
+        k.fy,
+        s.fy
     );
-    println!(
+    outln!(
         "  cx = {:.3} +- {:.3} px, cy = {:.3} +- {:.3} px",
-        k.cx, s.cx, k.cy, s.cy
+        k.cx,
+        s.cx,
+        k.cy,
+        s.cy
     );
     let fixed = |v: f64, sd: f64, is_fixed: bool| {
         if is_fixed {
@@ -241,18 +251,18 @@ pub fn run(args: Args) -> Result<()> {
             format!("{v:.6} +- {sd:.6}")
         }
     };
-    println!(
+    outln!(
         "  distortion k1 = {}, k2 = {}",
         fixed(d.k1, s.k1, false),
         fixed(d.k2, s.k2, false)
     );
-    println!(
+    outln!(
         "             p1 = {}, p2 = {}, k3 = {}",
         fixed(d.p1, s.p1, cfg.options.fix_tangential),
         fixed(d.p2, s.p2, cfg.options.fix_tangential),
         fixed(d.k3, s.k3, cfg.options.fix_k3)
     );
-    println!(
+    outln!(
         "RMS reprojection error: {:.4} px over {} corners in {} views ({} iterations)",
         result.rms_px,
         result.points(),
@@ -260,7 +270,7 @@ pub fn run(args: Args) -> Result<()> {
         result.iterations
     );
     for w in &result.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let text = pa_calib::yaml::to_opencv_yaml(&result, Some(&cfg.target));
     if let Some(dir) = cfg.out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -273,6 +283,6 @@ pub fn run(args: Args) -> Result<()> {
     }
     pa_model::export::write_atomic(&cfg.out, text.as_bytes())
         .with_context(|| format!("writing {}", cfg.out.display()))?;
-    println!("wrote {}", cfg.out.display());
+    outln!("wrote {}", cfg.out.display());
     Ok(())
 }

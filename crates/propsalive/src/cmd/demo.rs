@@ -63,7 +63,7 @@ pub fn run(args: Args) -> Result<()> {
     let glb = pa_scene::prop_glb(&spec.prop).map_err(anyhow::Error::msg)?;
     pa_model::export::write_atomic(&args.out.join("prop.glb"), &glb)?;
     let mut renderer = Renderer::new()?;
-    println!("renderer: {}", renderer.adapter_info());
+    outln!("renderer: {}", renderer.adapter_info());
     let bar = ProgressBar::new(spec.frames as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {per_sec}  eta {eta}")
@@ -138,8 +138,8 @@ pub fn run(args: Args) -> Result<()> {
         median(metrics.iter().map(|m| Some(m.timings.total_ms()))).unwrap_or(f64::NAN),
     );
     pa_model::export::write_atomic(&args.out.join("report.md"), report.as_bytes())?;
-    print!("{report}");
-    println!("\nwrote to {}:", args.out.display());
+    out!("{report}");
+    outln!("\nwrote to {}:", args.out.display());
     for (what, p) in [
         ("composited frames", "frames/"),
         ("input | output | ground truth", "strip/"),
@@ -149,7 +149,7 @@ pub fn run(args: Args) -> Result<()> {
         ("report", "report.md"),
         ("the built-in prop", "prop.glb"),
     ] {
-        println!("  {:<32} {}", what, args.out.join(p).display());
+        outln!("  {:<32} {}", what, args.out.join(p).display());
     }
     Ok(())
 }

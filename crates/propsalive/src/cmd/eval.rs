@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use pa_pipeline::ar::{ArSettings, Fill, Texturing};
 use pa_render::Renderer;
 use pa_scene::eval::{mean, median, run_scene};
@@ -299,11 +299,19 @@ fn fmt(v: Option<f64>, digits: usize) -> String {
 
 pub fn run(args: Args) -> Result<()> {
     let (w, h) = super::parse_size(&args.size)?;
+    // Refused, not silently raised to 1 (issue 11).
+    if args.stride == 0 || args.stride > 46 {
+        bail!(
+            "--stride must be 1 to 46 (every Nth frame of the 49), got {}",
+            args.stride
+        );
+    }
+
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut renderer = Renderer::new()?;
-    eprintln!("renderer: {}", renderer.adapter_info());
-    let stride = args.stride.max(1);
+    errln!("renderer: {}", renderer.adapter_info());
+    let stride = args.stride;
     // Frames 0..3 let the tracker lock on; then every `stride`-th frame.
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(stride as usize)).collect();
     let mut table = String::new();
@@ -329,7 +337,7 @@ pub fn run(args: Args) -> Result<()> {
                     key_frames: m.key_frames.clone(),
                     ..SceneSpec::default()
                 };
-                eprintln!("{background:?} seed {seed}: {}", m.name);
+                errln!("{background:?} seed {seed}: {}", m.name);
                 let r = run_scene(
                     &mut renderer,
                     spec,
@@ -531,15 +539,15 @@ pub fn run(args: Args) -> Result<()> {
         &args.out.join("results.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),
     )?;
-    print!("{report}");
-    println!(
+    out!("{report}");
+    outln!(
         "\nwrote {} and {}",
         args.out.join("report.md").display(),
         args.out.join("results.json").display()
     );
-    println!("plots:");
+    outln!("plots:");
     for p in &plot_paths {
-        println!("  {}", p.display());
+        outln!("  {}", p.display());
     }
     Ok(())
 }

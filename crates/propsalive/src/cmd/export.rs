@@ -57,7 +57,7 @@ fn resolve(args: &Args, model: &Model) -> Result<Config> {
     if let Some(a) = animation {
         let d = model.animations[a].duration_s;
         if time_s > d + 1e-6 {
-            eprintln!("note: time {time_s} s is past the clip's end ({d} s); the last key is held");
+            errln!("note: time {time_s} s is past the clip's end ({d} s); the last key is held");
         }
     }
     Ok(Config { animation, time_s })
@@ -70,6 +70,8 @@ pub fn run(args: Args) -> Result<()> {
             args.out.display()
         );
     }
+    // Never a FIFO, a device or a link, --force or not (checked before the work).
+    pa_io::check_replaceable(&args.out)?;
     if args.out.exists() && !args.force {
         bail!("{} exists; pass --force to replace it", args.out.display());
     }
@@ -83,7 +85,7 @@ pub fn run(args: Args) -> Result<()> {
     export::write(&model, &posed, &args.out)
         .with_context(|| format!("exporting {}", args.model.display()))?;
     let verts: usize = posed.iter().map(|p| p.positions.len()).sum();
-    println!(
+    outln!(
         "wrote {} ({} primitives, {verts} vertices, t = {} s)",
         args.out.display(),
         posed.len(),

@@ -14,7 +14,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<()> {
     let model = Model::load(&args.model)?;
-    print!("{}", describe(&model));
+    out!("{}", describe(&model));
     Ok(())
 }
 

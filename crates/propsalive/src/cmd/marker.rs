@@ -86,24 +86,6 @@ pub struct Sheet {
     pub svg: PathBuf,
 }
 
-fn parse_grid(s: &str) -> Result<(u32, u32)> {
-    let Some((r, c)) = s.split_once(['x', 'X']) else {
-        bail!("--board {s:?} must look like ROWSxCOLS, e.g. 2x3");
-    };
-    let r: u32 = r
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {s:?}: rows"))?;
-    let c: u32 = c
-        .trim()
-        .parse()
-        .with_context(|| format!("--board {s:?}: columns"))?;
-    if r == 0 || c == 0 || r * c > 1000 {
-        bail!("--board {s:?}: rows and columns must be >= 1 (at most 1000 tags)");
-    }
-    Ok((r, c))
-}
-
 /// Resolves and checks the flags (nothing is written).
 pub fn resolve(args: &Args) -> Result<Sheet> {
     let family: TagFamily = args.family.parse()?;
@@ -127,7 +109,7 @@ pub fn resolve(args: &Args) -> Result<Sheet> {
         );
     }
     let (rows, cols) = match &args.board {
-        Some(b) => parse_grid(b)?,
+        Some(b) => super::parse_grid(b)?,
         None => (1, 1),
     };
     let first_id = if args.board.is_some() {
@@ -446,21 +428,21 @@ pub fn run(args: Args) -> Result<()> {
     write_sheet(&sheet)?;
     let img_w = (sheet.page_w_mm * sheet.dpi / 25.4).round();
     let img_h = (sheet.page_h_mm * sheet.dpi / 25.4).round();
-    println!("{}", sheet.label.join("\n"));
-    println!(
+    outln!("{}", sheet.label.join("\n"));
+    outln!(
         "marker origin (centre of the {}) at ({:.3}, {:.3}) mm from the page's top-left; +X right, +Y down the page",
         if sheet.ids.len() > 1 { "board" } else { "tag" },
         sheet.origin_mm.0,
         sheet.origin_mm.1
     );
-    println!(
+    outln!(
         "wrote {} and {} at {} dpi ({img_w}x{img_h} px)",
         describe(&sheet, &sheet.svg),
         sheet.png.display(),
         sheet.dpi
     );
     if sheet.ids.len() > 1 {
-        println!(
+        outln!(
             "track it with: propsalive track INPUT --tag-size-m {} --family {} --board {}x{} --gap-m {} --first-id {}",
             sheet.size_mm / 1000.0,
             sheet.family,
@@ -470,7 +452,7 @@ pub fn run(args: Args) -> Result<()> {
             sheet.ids[0]
         );
     } else {
-        println!(
+        outln!(
             "track it with: propsalive track INPUT --tag-size-m {} --family {} --id {}",
             sheet.size_mm / 1000.0,
             sheet.family,

@@ -210,13 +210,13 @@ struct Preview {
 impl Preview {
     /// Says `msg` on stdout and for a moment on screen.
     fn toast(&mut self, msg: String) {
-        println!("{msg}");
+        outln!("{msg}");
         self.toast = Some((msg, Instant::now()));
     }
 
     /// Says an error on stderr and for a moment on screen.
     fn toast_error(&mut self, msg: String) {
-        eprintln!("error: {msg}");
+        errln!("error: {msg}");
         self.toast = Some((format!("error: {msg}"), Instant::now()));
     }
 
@@ -302,7 +302,8 @@ impl Preview {
             None => true,
         };
         if stale {
-            let loaded = image::open(&path).map(|d| d.to_rgba8());
+            let loaded =
+                pa_video::still::read_still(&path, &Default::default()).map(|d| d.to_rgba8());
             match loaded {
                 Ok(mut img) => {
                     if img.dimensions() != (w, h) {
@@ -452,7 +453,7 @@ impl Preview {
                 }
                 let msg = format!("warning: {e:#}");
                 if msg != self.last_warning {
-                    eprintln!("{msg}");
+                    errln!("{msg}");
                     self.last_warning = msg;
                 }
                 return Ok(false);
@@ -556,14 +557,14 @@ impl Preview {
 
     fn finish(&mut self) {
         if let Some(rec) = self.recording.take() {
-            println!("recorded {} frame(s) to {}", rec.frames, rec.dir.display());
+            outln!("recorded {} frame(s) to {}", rec.frames, rec.dir.display());
         }
         match self.meter.summary() {
-            Some((median, p95)) => println!(
+            Some((median, p95)) => outln!(
                 "preview: {} frame(s) presented; camera-to-screen latency median {median:.1} ms, p95 {p95:.1} ms",
                 self.frames
             ),
-            None => println!("preview: no frame presented"),
+            None => outln!("preview: no frame presented"),
         }
     }
 }
@@ -618,9 +619,9 @@ fn dump_presented(
 }
 
 fn print_help() {
-    println!("keys:");
+    outln!("keys:");
     for l in HELP {
-        println!("  {l}");
+        outln!("  {l}");
     }
 }
 
@@ -748,7 +749,7 @@ impl ApplicationHandler for App {
             });
         match result {
             Ok((w, p)) => {
-                println!("window: {}", p.description);
+                outln!("window: {}", p.description);
                 w.request_redraw();
                 self.window = Some(w);
                 self.presenter = Some(p);
@@ -786,12 +787,23 @@ impl ApplicationHandler for App {
 
 pub fn run(args: Args) -> Result<()> {
     // The display first: without one there is no point generating anything.
+    const NEEDS_DISPLAY: &str = "the preview needs a display (DISPLAY or WAYLAND_DISPLAY; on a \
+         machine without one, run it under Xvfb: `xvfb-run propsalive preview`)";
+    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()));
+    if !has_display {
+        bail!("no display: {NEEDS_DISPLAY}");
+    }
     let event_loop = EventLoop::new().map_err(|e| {
-        anyhow::anyhow!(
-            "cannot open the window system ({e}); the preview needs a display (DISPLAY or \
-             WAYLAND_DISPLAY; on a machine without one, run it under Xvfb: \
-             `xvfb-run propsalive preview`)"
-        )
+        // winit's message starts with its own source location ("os error at FILE:LINE: ..."):
+        // only the reason is for the user.
+        let text = e.to_string();
+        let reason = match text.split_once(": ") {
+            Some((head, rest)) if head.contains(".rs:") => rest.to_string(),
+            _ => text,
+        };
+        anyhow::anyhow!("cannot open the window system ({reason}); {NEEDS_DISPLAY}")
     })?;
     let desc = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
         event_loop.owned_display_handle(),
@@ -828,7 +840,7 @@ pub fn run(args: Args) -> Result<()> {
         axes_len_m,
         frame_size,
     } = setup;
-    println!("source: {}", source.describe());
+    outln!("source: {}", source.describe());
     if args.paused {
         state.playing = false;
     }

@@ -179,12 +179,14 @@ pub fn resolve(args: &Args, model: &Model) -> Result<Config> {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    // The flags first (the size is refused before a large model is read).
+    super::parse_size(&args.size)?;
     let model = Model::load(&args.model)?;
     let cfg = resolve(&args, &model)?;
     let mut renderer = Renderer::new()?;
-    eprintln!("rendering on {}", renderer.adapter_info());
+    errln!("rendering on {}", renderer.adapter_info());
     let written = render_frames(&mut renderer, &model, &cfg, &args.out, args.force)?;
-    println!(
+    outln!(
         "wrote {written} frames ({}x{}) to {}",
         cfg.intrinsics.width,
         cfg.intrinsics.height,

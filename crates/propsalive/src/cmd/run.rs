@@ -91,6 +91,7 @@ use pa_pipeline::shot::Shot;
 use pa_render::Renderer;
 use pa_track::board::BoardTag;
 use pa_track::{Board, DetectorConfig, TagFamily, TrackTarget, Tracker, TrackerConfig};
+use pa_video::still::StillBudget;
 use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, VideoError, VideoReader};
 use serde::{Deserialize, Serialize};
 
@@ -161,9 +162,60 @@ pub struct Entry {
     /// The pass files written with this frame (`plate/NNNNNN.png`, ...), with `--passes`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub passes: Option<Vec<String>>,
+    /// What was written for this still (the frame and its passes): each file's size and
+    /// XXH3-64 hash. Resume keeps a frame only when its files still match.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub written: Option<Vec<Written>>,
     pub exposure: u32,
     pub bit_depth: u8,
     pub shot_hash: String,
+}
+
+/// One file a still wrote, as the log records it.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Written {
+    /// Relative to the take folder (`frames/000003.png`).
+    pub path: String,
+    pub bytes: u64,
+    /// XXH3-64 of the bytes, 16 hex digits.
+    pub xxh3: String,
+}
+
+impl Written {
+    fn of(path: String, bytes: &[u8]) -> Self {
+        Self {
+            path,
+            bytes: bytes.len() as u64,
+            xxh3: format!("{:016x}", xxhash_rust::xxh3::xxh3_64(bytes)),
+        }
+    }
+
+    /// Why the file in `take` does not match the record (None when it does). A symbolic link
+    /// is never followed: it does not match.
+    fn mismatch(&self, take: &Path) -> Option<String> {
+        let p = take.join(&self.path);
+        let meta = match std::fs::symlink_metadata(&p) {
+            Ok(m) => m,
+            Err(_) => return Some(format!("{} is missing", self.path)),
+        };
+        if !meta.is_file() {
+            return Some(format!("{} is {}", self.path, pa_io::kind_of(&meta)));
+        }
+        if meta.len() != self.bytes {
+            return Some(format!(
+                "{} has {} bytes, {} were written",
+                self.path,
+                meta.len(),
+                self.bytes
+            ));
+        }
+        let bytes = match pa_io::read_regular(&p, self.bytes, "a frame of the take") {
+            Ok(b) => b,
+            Err(e) => return Some(e.to_string()),
+        };
+        let h = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(&bytes));
+        (h != self.xxh3).then(|| format!("{} was changed after it was written", self.path))
+    }
 }
 
 /// Stage timings of one still, milliseconds.
@@ -207,10 +259,10 @@ fn file_stamp(p: &Path) -> Result<(u64, u64)> {
 /// cut short) is ignored, an unparsable line elsewhere is reported and ignored.
 pub fn read_log(path: &Path) -> Result<BTreeMap<usize, Entry>> {
     let mut map = BTreeMap::new();
-    if !path.exists() {
+    if std::fs::symlink_metadata(path).is_err() {
         return Ok(map);
     }
-    let text = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let text = pa_io::read_regular(path, MAX_LOG_BYTES, "a take's log")?;
     let text = String::from_utf8_lossy(&text);
     let lines: Vec<&str> = text.split('\n').collect();
     for (n, line) in lines.iter().enumerate() {
@@ -222,12 +274,12 @@ pub fn read_log(path: &Path) -> Result<BTreeMap<usize, Entry>> {
                 map.insert(e.index, e);
             }
             Err(e) if n + 1 == lines.len() => {
-                eprintln!(
+                errln!(
                     "note: {}: ignoring a truncated last line ({e})",
                     path.display()
                 );
             }
-            Err(e) => eprintln!(
+            Err(e) => errln!(
                 "warning: {}: ignoring unreadable line {} ({e})",
                 path.display(),
                 n + 1
@@ -237,16 +289,36 @@ pub fn read_log(path: &Path) -> Result<BTreeMap<usize, Entry>> {
     Ok(map)
 }
 
-fn write_log(path: &Path, entries: &BTreeMap<usize, Entry>) -> Result<()> {
+/// The budget for a take's log: about two million stills.
+const MAX_LOG_BYTES: u64 = 1 << 30;
+
+/// The log's text: one line per index, in index order.
+fn log_text(entries: &BTreeMap<usize, Entry>) -> Result<String> {
     let mut text = String::new();
     for e in entries.values() {
         text.push_str(&serde_json::to_string(e)?);
         text.push('\n');
     }
-    pa_model::export::write_atomic(path, text.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
-    sync_dir(path);
-    Ok(())
+    Ok(text)
+}
+
+/// Rewrites the log (atomically) unless it already holds exactly this text: a run with
+/// nothing to do writes nothing (a finished take on a read-only disk can be checked).
+fn write_log(path: &Path, entries: &BTreeMap<usize, Entry>) -> Result<()> {
+    let text = log_text(entries)?;
+    write_durable_if_changed(path, text.as_bytes())
+}
+
+/// [`write_durable`] unless `path` is a regular file holding exactly `bytes` already.
+fn write_durable_if_changed(path: &Path, bytes: &[u8]) -> Result<()> {
+    let same = std::fs::symlink_metadata(path)
+        .is_ok_and(|m| m.is_file() && m.len() == bytes.len() as u64)
+        && pa_io::read_regular(path, bytes.len() as u64, "a file of the take")
+            .is_ok_and(|old| old == bytes);
+    if same {
+        return Ok(());
+    }
+    write_durable(path, bytes)
 }
 
 /// Makes a rename in `path`'s folder durable (best effort).
@@ -332,6 +404,13 @@ pub(crate) fn parse_input(input: &Path) -> Result<InputSpec> {
     }
     if input.is_file() {
         return Ok(InputSpec::Video(input.to_path_buf()));
+    }
+    if let Ok(meta) = std::fs::metadata(input) {
+        bail!(
+            "--input {}: is {}, not a folder of stills, a video file or a camera (camera:/dev/videoN)",
+            input.display(),
+            pa_io::kind_of(&meta)
+        );
     }
     bail!(
         "--input {}: no such file or folder (give a folder of stills, a video file, or camera:/dev/videoN)",
@@ -505,30 +584,38 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
     }
     let passes = PassSet::parse(&args.passes)?;
     let shot = Shot::load(&args.shot)?;
-    let shot_text =
-        std::fs::read(&args.shot).with_context(|| format!("reading {}", args.shot.display()))?;
+    let shot_text = pa_io::read_regular(&args.shot, MAX_SHOT_BYTES, "a shot file")?;
+    let input = parse_input(&args.input)?;
+    check_no_overlap(&input, &args.out, args.mp4.as_deref())?;
     if let Some(mp4) = &args.mp4 {
         Fps::from_f64(shot.fps as f64)
             .with_context(|| format!("{}: fps {} for the MP4", args.shot.display(), shot.fps))?;
         check_mp4_target(mp4, &args.out, args.force)?;
     }
-    let input = parse_input(&args.input)?;
     if args.camera_size.is_some() && !matches!(input, InputSpec::Camera(_)) {
         bail!("--camera-size is for a camera input (--input camera:/dev/videoN)");
     }
     let (source, unit, input_desc, width, height, first_desc) = match input {
         InputSpec::Folder(dir) => {
             let (stills, _) = super::track::list_frames(&dir)?;
-            let (first, (width, height)) = stills
-                .iter()
-                .find_map(|p| image::image_dimensions(p).ok().map(|d| (p, d)))
-                .with_context(|| {
-                    format!(
-                        "{}: no readable still (tried {} file(s))",
-                        dir.display(),
-                        stills.len()
-                    )
-                })?;
+            let mut first_error = None;
+            let found = stills.iter().find_map(|p| {
+                match pa_video::still::still_dimensions(p, &StillBudget::default()) {
+                    Ok(d) => Some((p, d)),
+                    Err(e) => {
+                        first_error.get_or_insert(e);
+                        None
+                    }
+                }
+            });
+            let Some((first, (width, height))) = found else {
+                bail!(
+                    "{}: no readable still (tried {} file(s); the first: {})",
+                    dir.display(),
+                    stills.len(),
+                    first_error.map_or_else(|| "none".to_string(), |e| e.to_string())
+                );
+            };
             let first = first.display().to_string();
             let desc = format!("{} still(s) in {}", stills.len(), dir.display());
             (
@@ -554,7 +641,7 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
             let stamp = file_stamp(&path)?;
             if let Some(f) = info.fps {
                 if (f.as_f64() - shot.fps as f64).abs() > 1e-3 * f.as_f64() {
-                    eprintln!(
+                    errln!(
                         "note: {} runs at {f} fps and the shot at {} fps: frame i is still i (animation frame i / exposure), whatever the video's timing",
                         path.display(),
                         shot.fps
@@ -590,6 +677,11 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
             )
         }
     };
+    if args.mp4.is_some() {
+        // Before the take, not after it: OpenH264 refuses frames below 16x16.
+        Mp4Writer::check_frame_size(width, height)
+            .with_context(|| format!("--mp4 for {first_desc} ({width}x{height})"))?;
+    }
     let camera = camera_for_shot(&shot, &args.shot, width, height, &first_desc)?;
     let board = board_from_shot(&shot, &args.shot)?;
     let model_path = Shot::resolve(&args.shot, &shot.model);
@@ -614,6 +706,69 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
         passes,
     };
     Ok((cfg, source))
+}
+
+/// The budget for a shot file (read again here for its hash).
+const MAX_SHOT_BYTES: u64 = 4 << 20;
+
+/// `p` made absolute with every symbolic link resolved as far as the path exists (the rest,
+/// not yet created, appended as written).
+fn resolved(p: &Path) -> PathBuf {
+    let abs = absolute(p);
+    let mut existing = abs.as_path();
+    let mut rest = Vec::new();
+    loop {
+        if let Ok(c) = existing.canonicalize() {
+            let mut out = c;
+            for r in rest.iter().rev() {
+                out.push(r);
+            }
+            return out;
+        }
+        match (existing.parent(), existing.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                existing = parent;
+            }
+            _ => return abs,
+        }
+    }
+}
+
+/// Refuses a take whose outputs could overwrite its inputs: the input (a folder of stills or
+/// a video file) inside the take folder or the take folder inside the input folder, after
+/// resolving links, and an `--mp4` that is the input or lies in the input folder. Checked
+/// with or without `--force`.
+fn check_no_overlap(input: &InputSpec, out: &Path, mp4: Option<&Path>) -> Result<()> {
+    let input_path = match input {
+        InputSpec::Folder(p) | InputSpec::Video(p) => resolved(p),
+        InputSpec::Camera(_) => return Ok(()),
+    };
+    let out_path = resolved(out);
+    if input_path.starts_with(&out_path) || out_path.starts_with(&input_path) {
+        bail!(
+            "--input {} and --out {} overlap ({} and {}): the take would write over its own input; write the take to a folder outside the input (with or without --force)",
+            match input {
+                InputSpec::Folder(p) | InputSpec::Video(p) => p.display().to_string(),
+                InputSpec::Camera(p) => p.display().to_string(),
+            },
+            out.display(),
+            input_path.display(),
+            out_path.display()
+        );
+    }
+    if let Some(mp4) = mp4 {
+        let mp4_path = resolved(mp4);
+        if mp4_path == input_path
+            || (matches!(input, InputSpec::Folder(_)) && mp4_path.starts_with(&input_path))
+        {
+            bail!(
+                "--mp4 {} is the input or inside the input folder; name a file elsewhere",
+                mp4.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 // --- frame sources -------------------------------------------------------------------------
@@ -1061,6 +1216,26 @@ impl Take {
         })
     }
 
+    /// Why the files of a logged frame cannot be kept (None when every one matches what the
+    /// log records as written).
+    fn mismatch(&self, e: &Entry) -> Option<String> {
+        let Some(written) = &e.written else {
+            return Some(
+                "the log has no record of what was written (a take of an older version)".into(),
+            );
+        };
+        let recorded = |p: &String| written.iter().any(|w| &w.path == p);
+        if let Some(p) = e
+            .output
+            .iter()
+            .chain(e.passes.iter().flatten())
+            .find(|p| !recorded(p))
+        {
+            return Some(format!("the log has no record of {p}"));
+        }
+        written.iter().find_map(|w| w.mismatch(&self.out))
+    }
+
     fn plan(&self, i: usize, name: &str, stamp: (u64, u64)) -> Plan {
         match self.entries.get(&i) {
             None => Plan::Process(None),
@@ -1078,7 +1253,12 @@ impl Take {
                 }))
             }
             Some(e) => match &e.output {
-                Some(o) if self.out.join(o).is_file() && self.has_passes(e) => Plan::Done,
+                Some(o) if self.out.join(o).is_file() && self.has_passes(e) => {
+                    match self.mismatch(e) {
+                        None => Plan::Done,
+                        Some(why) => Plan::Process(Some(format!("frame {i} re-rendered: {why}"))),
+                    }
+                }
                 Some(_) => Plan::Process(None),
                 None => Plan::Done,
             },
@@ -1100,6 +1280,7 @@ impl Take {
             output: None,
             skipped: None,
             passes: None,
+            written: None,
             exposure: self.exposure,
             bit_depth: self.bit_depth,
             shot_hash: self.shot_hash.clone(),
@@ -1158,12 +1339,67 @@ fn camera_start_index(take: &Take) -> usize {
     logged.max(saved).unwrap_or(0)
 }
 
+/// Takes the take's lock (`DIR/.lock`), or fails naming the run that holds it. On a
+/// read-only file system no run can write the take: no lock is needed (and none can be made).
+fn lock_take(out: &Path) -> Result<Option<pa_io::FileLock>> {
+    let holder = format!(
+        "propsalive run, pid {}, started at unix time {}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs())
+    );
+    match pa_io::FileLock::try_acquire(&out.join(".lock"), &holder) {
+        Ok(lock) => Ok(Some(lock)),
+        Err(pa_io::IoError::Locked { holder, .. }) => bail!(
+            "{}: another run is writing this take ({holder}); wait for it to end, or use another --out folder",
+            out.display()
+        ),
+        Err(pa_io::IoError::Io { source, .. })
+            if source.kind() == std::io::ErrorKind::ReadOnlyFilesystem =>
+        {
+            Ok(None)
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Refuses a take whose folders (`frames/`, ...) are symbolic links or not folders: a take
+/// never follows a link out of itself.
+fn check_take_folders(out: &Path) -> Result<()> {
+    for d in TAKE_DIRS {
+        let p = out.join(d);
+        if let Ok(meta) = std::fs::symlink_metadata(&p) {
+            if !meta.is_dir() {
+                bail!(
+                    "{}: is {}, not a folder; a take's {d}/ must be a real folder inside it",
+                    p.display(),
+                    pa_io::kind_of(&meta)
+                );
+            }
+        }
+    }
+    for f in ["log.jsonl", "camera.gltf", "mp4.json"] {
+        let p = out.join(f);
+        if let Ok(meta) = std::fs::symlink_metadata(&p) {
+            if !meta.is_file() {
+                bail!(
+                    "{}: is {}, not a regular file",
+                    p.display(),
+                    pa_io::kind_of(&meta)
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Removes temporary files a killed run left behind (`.NAME.tmp-PID`).
 fn remove_stale_temps(dir: &Path) {
     if let Ok(rd) = std::fs::read_dir(dir) {
         for e in rd.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            if name.starts_with('.') && name.contains(".tmp-") {
+            if pa_io::is_temp_name(&name) {
                 let _ = std::fs::remove_file(e.path());
             }
         }
@@ -1228,7 +1464,7 @@ impl Progress {
 
     /// A line on stderr.
     fn say(&self, msg: &str) {
-        self.bar.suspend(|| eprintln!("{msg}"));
+        self.bar.suspend(|| errln!("{msg}"));
     }
 
     /// `k` frames handled; `what` is the last one in words.
@@ -1254,7 +1490,7 @@ impl Progress {
         }
         self.last_line = Some(now);
         let of = self.total.map(|n| format!("/{n}")).unwrap_or_default();
-        eprintln!("frame {k}{of} ({what}): {fps:.2} frames/s{left}");
+        errln!("frame {k}{of} ({what}): {fps:.2} frames/s{left}");
     }
 
     fn finish(&self) {
@@ -1354,9 +1590,8 @@ fn run_take(
         let mut entry = take.new_entry(&input, anim_frame);
         let decoded: std::result::Result<image::DynamicImage, String> = match input.pixels {
             Pixels::Decoded(img) => Ok(img),
-            Pixels::Deferred(path) => {
-                image::open(&path).map_err(|e| format!("cannot read it: {e}"))
-            }
+            Pixels::Deferred(path) => pa_video::still::read_still(&path, &StillBudget::default())
+                .map_err(|e| e.to_string()),
             Pixels::Unreadable(e) => Err(e),
         };
         let img = match decoded {
@@ -1432,8 +1667,19 @@ fn run_take(
             entry.output = Some(format!("frames/{}", frame_name(i)));
             o.processed += 1;
         }
+        if !files.is_empty() {
+            entry.written = Some(
+                files
+                    .iter()
+                    .map(|(path, bytes)| {
+                        let rel = path.strip_prefix(&take.out).unwrap_or(path);
+                        Written::of(rel.to_string_lossy().into_owned(), bytes)
+                    })
+                    .collect(),
+            );
+        }
         // The log line first (fsynced), then the files: a file never exists unknown to the
-        // log, and a line without its frame is redone on resume.
+        // log, and a line without its frame (or with other bytes) is redone on resume.
         let line = serde_json::to_string(&entry)?;
         writeln!(log, "{line}").with_context(|| format!("writing {}", take.log_path.display()))?;
         log.flush()?;
@@ -1441,6 +1687,11 @@ fn run_take(
         let state = entry.state.clone().unwrap_or_else(|| "skipped".into());
         take.entries.insert(i, entry);
         for (path, bytes) in &files {
+            // A symbolic link in the take is never followed: the link itself is replaced.
+            if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
+                std::fs::remove_file(path)
+                    .with_context(|| format!("removing the link {}", path.display()))?;
+            }
             write_durable(path, bytes)?;
         }
         progress.frame(k, &format!("{unit} {i}, {name}: {state}"));
@@ -1461,20 +1712,25 @@ fn install_stop_handler(live: bool) {
     let hits = Arc::new(AtomicBool::new(false));
     let result = ctrlc::set_handler(move || {
         if hits.swap(true, Ordering::SeqCst) {
-            eprintln!("\ninterrupted again: quitting now (every file of the take is whole)");
+            errln!("\ninterrupted again: quitting now (every file of the take is whole)");
             std::process::exit(130);
         }
-        eprintln!("{first}");
+        errln!("{first}");
         STOP.store(true, Ordering::SeqCst);
     });
     if let Err(e) = result {
-        eprintln!("note: cannot catch Ctrl-C ({e}); it will stop the run at once");
+        errln!("note: cannot catch Ctrl-C ({e}); it will stop the run at once");
     }
 }
 
 pub fn run(args: Args) -> Result<()> {
     let (cfg, spec) = resolve(&args)?;
     let live = matches!(spec, SourceSpec::Camera(_));
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    // One run per take: held until this process ends, however it ends.
+    let _lock = lock_take(&args.out)?;
+    check_take_folders(&args.out)?;
     let frames_dir = args.out.join("frames");
     std::fs::create_dir_all(&frames_dir)
         .with_context(|| format!("creating {}", frames_dir.display()))?;
@@ -1543,7 +1799,7 @@ pub fn run(args: Args) -> Result<()> {
                 foreign.len()
             );
         }
-        eprintln!(
+        errln!(
             "warning: --force: {} file(s) in {} are not from this take ({list}{more}); those a {} maps to will be replaced",
             foreign.len(),
             args.out.display(),
@@ -1573,7 +1829,7 @@ pub fn run(args: Args) -> Result<()> {
             let next_index = camera_start_index(&take);
             let logged = take.entries.keys().next_back().map_or(0, |i| i + 1);
             if next_index > logged {
-                eprintln!(
+                errln!(
                     "note: {} holds captured frame(s) up to index {} that the log does not have (a capture cut short?): kept; this capture starts at {next_index}",
                     args.out.join("inputs").display(),
                     next_index - 1
@@ -1607,14 +1863,14 @@ pub fn run(args: Args) -> Result<()> {
     // One line per index, no truncated line, before appending.
     write_log(&log_path, &take.entries)?;
     if resumed > 0 {
-        eprintln!(
+        errln!(
             "resuming the take in {}: {resumed} of {} {unit}(s) already done",
             args.out.display(),
             plans.len()
         );
     }
     if live {
-        eprintln!(
+        errln!(
             "capturing from {} into {} (from index {}){}",
             cfg.input_desc,
             args.out.display(),
@@ -1691,7 +1947,7 @@ fn finish(
         .filter(|e| e.index >= n && e.output.is_some())
         .count();
     if past_end > 0 {
-        eprintln!(
+        errln!(
             "note: the take has {past_end} frame(s) past the last of the {n} {unit}(s) ({unit}s removed?); left in place"
         );
     }
@@ -1700,7 +1956,7 @@ fn finish(
         .filter(|e| e.index < n && e.output.is_some())
         .count();
     if let End::Lost(msg) = &o.end {
-        eprintln!("warning: {msg}: the take ends here; everything captured is kept");
+        errln!("warning: {msg}: the take ends here; everything captured is kept");
     }
     if produced == 0 {
         bail!(
@@ -1713,7 +1969,7 @@ fn finish(
         (Some(l), false) if l < n => format!(", {} not asked for (--frames {l})", n - l),
         _ => String::new(),
     };
-    eprintln!(
+    errln!(
         "run: {n} {unit}(s): {} processed, {resumed} resumed from an earlier run, {} skipped{}{limited}; frames in {}, log {}",
         o.processed,
         o.skipped_read + o.skipped_size,
@@ -1727,7 +1983,7 @@ fn finish(
     );
     let total_skipped = o.skipped_read + o.skipped_size + skipped_before;
     if total_skipped > 0 {
-        eprintln!(
+        errln!(
             "warning: {total_skipped} {unit}(s) have no frame ({} unreadable, {} with another size this run; {skipped_before} skipped in an earlier run): see \"skipped\" in {}",
             o.skipped_read,
             o.skipped_size,
@@ -1738,16 +1994,18 @@ fn finish(
     let interrupted = o.end == End::Interrupted;
     if let Some(mp4) = &args.mp4 {
         if interrupted && !live {
-            eprintln!(
+            errln!(
                 "note: interrupted: no MP4 written ({} is made when the take is complete)",
                 mp4.display()
             );
+        } else if mp4_is_current(mp4, &take.out, &take_hash(entries, n)) {
+            errln!("mp4: {} is up to date", mp4.display());
         } else {
             write_mp4(mp4, &take.out, entries, n, cfg.fps, args.force)?;
         }
     }
     if interrupted && !live {
-        eprintln!(
+        errln!(
             "interrupted: the take in {} is kept; run the same command again to finish it",
             take.out.display()
         );
@@ -1778,13 +2036,13 @@ fn export_camera(
         })
         .collect();
     if !poses.iter().any(|(_, p)| p.is_some()) {
-        eprintln!("note: no still of the take was tracked: no camera.gltf written");
+        errln!("note: no still of the take was tracked: no camera.gltf written");
         return Ok(());
     }
     let doc = super::camera_export::camera_gltf(&poses, intrinsics, fps)?;
     let path = out.join("camera.gltf");
-    write_durable(&path, doc.json.as_bytes())?;
-    eprintln!(
+    write_durable_if_changed(&path, doc.json.as_bytes())?;
+    errln!(
         "camera: {} tracked still(s) exported to {} (glTF 2.0, Y-up, {} fps)",
         doc.keys,
         path.display(),
@@ -1803,6 +2061,30 @@ struct Mp4Record {
     mtime_ns: u64,
     frames: u64,
     fps: f32,
+    /// XXH3-64 of the frames it was made from (their indices and recorded hashes), so a
+    /// re-run with nothing new knows the MP4 is current.
+    #[serde(default)]
+    take_hash: String,
+}
+
+/// The identity of the frames `0..n` an MP4 is made from.
+fn take_hash(entries: &BTreeMap<usize, Entry>, n: usize) -> String {
+    let mut text = String::new();
+    for e in entries.values().filter(|e| e.index < n) {
+        if let (Some(_), Some(w)) = (&e.output, &e.written) {
+            text.push_str(&format!("{} {}\n", e.index, w[0].xxh3));
+        }
+    }
+    format!("{:016x}", xxhash_rust::xxh3::xxh3_64(text.as_bytes()))
+}
+
+/// True when `mp4` is this take's and was made from exactly the frames it holds now.
+fn mp4_is_current(mp4: &Path, out: &Path, hash: &str) -> bool {
+    mp4_is_ours(mp4, out)
+        && pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json")
+            .ok()
+            .and_then(|t| serde_json::from_slice::<Mp4Record>(&t).ok())
+            .is_some_and(|r| r.take_hash == hash)
 }
 
 fn absolute(p: &Path) -> PathBuf {
@@ -1811,7 +2093,7 @@ fn absolute(p: &Path) -> PathBuf {
 
 /// True when `mp4` is the file this take last wrote (same path, size and mtime).
 fn mp4_is_ours(mp4: &Path, out: &Path) -> bool {
-    let Ok(text) = std::fs::read(out.join("mp4.json")) else {
+    let Ok(text) = pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json") else {
         return false;
     };
     let Ok(rec) = serde_json::from_slice::<Mp4Record>(&text) else {
@@ -1878,11 +2160,11 @@ fn write_mp4(
         .collect();
     let (Some((&first, first_path)), Some(&last)) = (frames.iter().next(), frames.keys().last())
     else {
-        eprintln!("note: the take has no frame: no MP4 written");
+        errln!("note: the take has no frame: no MP4 written");
         return Ok(());
     };
     let read = |p: &Path| -> Result<image::RgbaImage> {
-        Ok(image::open(p)
+        Ok(pa_video::still::read_still(p, &StillBudget::default())
             .with_context(|| format!("reading {} for the MP4", p.display()))?
             .to_rgba8())
     };
@@ -1933,12 +2215,13 @@ fn write_mp4(
         mtime_ns,
         frames: summary.frames,
         fps,
+        take_hash: take_hash(entries, n),
     };
     write_durable(
         &out.join("mp4.json"),
         serde_json::to_string_pretty(&rec)?.as_bytes(),
     )?;
-    eprintln!(
+    errln!(
         "mp4: {} frame(s) at {rate} fps, {:.1} MB, H.264 -> {}{}",
         summary.frames,
         summary.bytes as f64 / 1e6,

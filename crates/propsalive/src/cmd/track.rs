@@ -241,25 +241,13 @@ pub fn fit_intrinsics(
             a_cal
         );
     }
-    eprintln!(
+    errln!(
         "note: {frame_name} is {width}x{height} but the calibration {calib_name} is for {}x{}; scaling the intrinsics by {:.4} (same aspect ratio)",
         k.width,
         k.height,
         width as f64 / k.width as f64
     );
     Ok(k.scaled_to(width, height))
-}
-
-fn parse_grid(s: &str) -> Result<(u32, u32)> {
-    let Some((r, c)) = s.split_once(['x', 'X']) else {
-        bail!("--board {s:?} must look like ROWSxCOLS, e.g. 2x3");
-    };
-    let r: u32 = r.trim().parse().with_context(|| format!("--board {s:?}"))?;
-    let c: u32 = c.trim().parse().with_context(|| format!("--board {s:?}"))?;
-    if r == 0 || c == 0 || r * c > 1000 {
-        bail!("--board {s:?}: rows and columns must be >= 1 (at most 1000 tags)");
-    }
-    Ok((r, c))
 }
 
 fn draw_path(dir: &Path, frame: &Path) -> PathBuf {
@@ -293,7 +281,7 @@ pub fn resolve(args: &Args) -> Result<Config> {
     }
     let (target, extent_m) = match &args.board {
         Some(b) => {
-            let (rows, cols) = parse_grid(b)?;
+            let (rows, cols) = super::parse_grid(b)?;
             let gap = args
                 .gap_m
                 .context("--board needs --gap-m (the gap between black squares, metres)")?;
@@ -344,7 +332,11 @@ pub fn resolve(args: &Args) -> Result<Config> {
         // The first frame whose header reads sets the size.
         let (first, size) = frames
             .iter()
-            .find_map(|p| image::image_dimensions(p).ok().map(|d| (p.clone(), d)))
+            .find_map(|p| {
+                pa_video::still::still_dimensions(p, &Default::default())
+                    .ok()
+                    .map(|d| (p.clone(), d))
+            })
             .with_context(|| {
                 format!(
                     "{}: no readable image (tried {} file(s))",
@@ -375,7 +367,7 @@ pub fn resolve(args: &Args) -> Result<Config> {
                 bail!("--fov-deg must be in (1, 179), got {fov}");
             }
             let f = 0.5 * height as f64 / (0.5 * fov.to_radians()).tan();
-            eprintln!(
+            errln!(
                 "note: no calibration; assuming an ideal pinhole camera, vertical FOV {fov} deg (f = {f:.1} px), no distortion: poses are approximate"
             );
             CameraModel::pinhole(Intrinsics {
@@ -397,6 +389,11 @@ pub fn resolve(args: &Args) -> Result<Config> {
         .context("the camera intrinsics")?;
 
     if let Some(log) = &args.out_log {
+        if log.is_dir() {
+            bail!("--out-log {} is a folder; give a file name", log.display());
+        }
+        // Never a FIFO, a device or a link, --force or not.
+        pa_io::check_replaceable(log)?;
         if log.exists() && !args.force {
             bail!("{} exists; pass --force to replace it", log.display());
         }
@@ -637,7 +634,7 @@ pub fn run(args: Args) -> Result<()> {
                 if cfg.single_image {
                     return Err(e);
                 }
-                bar.suspend(|| eprintln!("warning: skipping {:#}", e));
+                bar.suspend(|| errln!("warning: skipping {:#}", e));
                 skipped += 1;
                 let out = tracker.update_with_detections(Vec::new(), t_s)?;
                 let mut v = frame_json(i, &name, 0, 0, &out, 0.0);
@@ -708,7 +705,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     times.sort_by(f64::total_cmp);
     let median = times.get(times.len() / 2).copied().unwrap_or(0.0);
-    eprintln!(
+    errln!(
         "{count} frame(s): target seen in {seen}, tracked in {tracked}, {skipped} unreadable skipped; median detection + pose {median:.2} ms/frame{}",
         cfg.out_log
             .as_ref()
@@ -779,9 +776,9 @@ impl FrameStream {
                     return Ok(None);
                 };
                 *next += 1;
-                let decoded = image::open(path)
+                let decoded = pa_video::still::read_still(path, &Default::default())
                     .map(|img| img.to_luma8())
-                    .with_context(|| format!("{}: cannot read the image", path.display()));
+                    .map_err(anyhow::Error::from);
                 Ok(Some(TrackFrame {
                     index: i,
                     name: path

@@ -51,44 +51,7 @@ pub fn png_bytes(img: &Image) -> Result<Vec<u8>> {
     Ok(png)
 }
 
-/// Writes `bytes` to `path` atomically and only if `path` does not exist: a temporary file in
-/// the same folder, synced, then hard-linked to its name (which fails if the name is taken;
-/// where the file system has no hard links, renamed after a check). Returns false when the
-/// name was taken.
-pub fn write_new_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<bool> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        match std::fs::hard_link(&tmp, path) {
-            Ok(()) => Ok(true),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(false),
-            Err(_) => {
-                if path.exists() {
-                    return Ok(false);
-                }
-                std::fs::rename(&tmp, path)?;
-                Ok(true)
-            }
-        }
-    })();
-    let _ = std::fs::remove_file(&tmp);
-    if let Ok(true) = result {
-        if let Ok(d) = std::fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
-    result
-}
+pub use pa_model::export::write_new_atomic;
 
 /// The capture folder: numbering and the list of captured frames (for the line-up).
 pub struct Captures {

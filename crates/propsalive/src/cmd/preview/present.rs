@@ -129,7 +129,7 @@ impl Presenter {
             let w = wanted.to_lowercase();
             adapters.retain(|a| a.get_info().name.to_lowercase().contains(&w));
         }
-        adapters.sort_by_key(|a| rank(&a.get_info()));
+        adapters.sort_by_key(|a| pa_render::adapter_rank(&a.get_info()));
         let Some(adapter) = adapters.into_iter().next() else {
             if all.is_empty() {
                 bail!(
@@ -467,23 +467,6 @@ impl Presenter {
         self.check_errors()?;
         Ok(Presented::Shown(rect))
     }
-}
-
-/// Adapters in order of preference: hardware before software, Vulkan/Metal/DX12 before GL.
-fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
-    let device = match info.device_type {
-        wgpu::DeviceType::DiscreteGpu => 0,
-        wgpu::DeviceType::IntegratedGpu => 1,
-        wgpu::DeviceType::VirtualGpu => 2,
-        wgpu::DeviceType::Cpu => 3,
-        wgpu::DeviceType::Other => 4,
-    };
-    let backend = match info.backend {
-        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
-        wgpu::Backend::Gl => 1,
-        _ => 2,
-    };
-    (device, backend)
 }
 
 #[cfg(test)]

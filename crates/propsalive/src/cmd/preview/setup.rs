@@ -40,7 +40,7 @@ fn last_frame(model: &pa_model::Model, animation: usize, fps: f32) -> u32 {
 pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
     let (w, h) = crate::cmd::parse_size(size.unwrap_or("640x360"))?;
     let mut renderer = Renderer::new().context("starting the renderer")?;
-    println!("renderer: {}", renderer.adapter_info());
+    outln!("renderer: {}", renderer.adapter_info());
     let spec = pa_scene::SceneSpec {
         width: w,
         height: h,
@@ -97,7 +97,11 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
                 let (stills, _) = crate::cmd::track::list_frames(&dir)?;
                 let (first, (width, height)) = stills
                     .iter()
-                    .find_map(|p| image::image_dimensions(p).ok().map(|d| (p.clone(), d)))
+                    .find_map(|p| {
+                        pa_video::still::still_dimensions(p, &Default::default())
+                            .ok()
+                            .map(|d| (p.clone(), d))
+                    })
                     .with_context(|| {
                         format!(
                             "{}: no readable still (tried {} file(s))",
@@ -140,7 +144,7 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
         .with_context(|| format!("loading the model {}", model_path.display()))?;
     let animation = shot.check_model(shot_path, &model)?;
     let mut renderer = Renderer::new().context("starting the renderer")?;
-    println!("renderer: {}", renderer.adapter_info());
+    outln!("renderer: {}", renderer.adapter_info());
     // Stills (and the frames of a video file, still i = animation frame i) are not a video to
     // the tracker: the camera may move between them, so every one is tracked on its own, as
     // `propsalive run` does. A live camera is a video: temporal tracking (filter, search

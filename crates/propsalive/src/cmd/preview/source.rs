@@ -164,7 +164,7 @@ impl FrameSource for StillsSource {
                     // stderr): the take goes on, as `propsalive run` skips it.
                     let msg = format!("{e:#}");
                     if self.warned.insert(i) {
-                        eprintln!("warning: {msg}");
+                        errln!("warning: {msg}");
                     }
                     placeholder(self.width, self.height, &msg)
                 }
@@ -302,7 +302,7 @@ impl FrameSource for VideoSource {
             Ok(_) => placeholder(self.width, self.height, "a frame of another size"),
             Err(msg) => {
                 if self.warned.insert(i) {
-                    eprintln!("warning: {msg}");
+                    errln!("warning: {msg}");
                 }
                 placeholder(self.width, self.height, &msg)
             }
@@ -393,7 +393,7 @@ impl FrameSource for CameraSource {
                 Err(e) => return Err(e.into()),
             }
             if let Some(msg) = &self.lost {
-                eprintln!("warning: {msg}");
+                errln!("warning: {msg}");
             }
         }
         let msg = self.lost.clone().unwrap_or_default();
@@ -412,7 +412,7 @@ impl FrameSource for CameraSource {
 
 /// Reads a still as RGBA8, checking its size.
 fn load_still(path: &Path, width: u32, height: u32) -> Result<Vec<u8>> {
-    let img = image::open(path)
+    let img = pa_video::still::read_still(path, &Default::default())
         .with_context(|| format!("reading still {}", path.display()))?
         .to_rgba8();
     if img.dimensions() != (width, height) {
