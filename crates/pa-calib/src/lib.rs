@@ -291,6 +291,19 @@ impl fmt::Display for ImageOutcome {
     }
 }
 
+/// Decodes an image file, opened only if it is a regular file ([`pa_io::open_regular`]).
+/// The format comes from the extension, else from the content; the decoder's default
+/// allocation limits apply.
+fn read_image(path: &Path) -> Result<image::DynamicImage, String> {
+    let file = pa_io::open_regular(path).map_err(|e| e.to_string())?;
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
+    match image::ImageFormat::from_path(path) {
+        Ok(format) => reader.set_format(format),
+        Err(_) => reader = reader.with_guessed_format().map_err(|e| e.to_string())?,
+    }
+    reader.decode().map_err(|e| e.to_string())
+}
+
 /// Collects views from images, one at a time, then calibrates.
 pub struct Calibrator {
     target: Target,
@@ -303,7 +316,9 @@ pub struct Calibrator {
 
 impl Calibrator {
     /// A calibrator for `target`. Fails for a chessboard under 2x2 inner corners, a square
-    /// size that is not a positive length, or a tag board without tags.
+    /// size that is not a positive length, or a tag board without tags, with a tag whose id
+    /// is past its family's codes, with an id twice, or with a tag whose size or place is not
+    /// a finite number.
     pub fn new(target: Target) -> Result<Self, CalibrateError> {
         let invalid = |reason: String| Err(CalibrateError::InvalidTarget { reason });
         let detector = match &target {
@@ -323,6 +338,28 @@ impl Calibrator {
                 if board.tags.is_empty() {
                     return invalid("the board has no tags".into());
                 }
+                let codes = pa_track::family_layout(board.family)?.id_count;
+                let mut ids = std::collections::HashSet::new();
+                for t in &board.tags {
+                    if t.id >= codes {
+                        return invalid(format!(
+                            "tag id {} does not exist in {} (ids 0..={})",
+                            t.id,
+                            board.family,
+                            codes.saturating_sub(1)
+                        ));
+                    }
+                    if !ids.insert(t.id) {
+                        return invalid(format!("tag id {} is on the board twice", t.id));
+                    }
+                    let finite = t.center_m.is_finite() && t.rotation_rad.is_finite();
+                    if !(finite && t.size_m.is_finite() && t.size_m > 0.0) {
+                        return invalid(format!(
+                            "tag {}: size, centre and rotation must be finite, the size > 0",
+                            t.id
+                        ));
+                    }
+                }
                 Some(Detector::new(DetectorConfig {
                     families: vec![board.family],
                     ..DetectorConfig::default()
@@ -340,16 +377,15 @@ impl Calibrator {
     }
 
     /// Reads an image file (PNG, JPEG, TIFF, ...; colour is converted to grey with Rec. 601
-    /// weights) and adds it. An unreadable file is skipped, not an error.
+    /// weights) and adds it. An unreadable file is skipped, not an error; so is anything but a
+    /// regular file (a FIFO or a device is refused at once, not waited on).
     pub fn add_file(&mut self, path: &Path) -> Result<ImageOutcome, CalibrateError> {
         let name = path.display().to_string();
-        match image::open(path) {
+        match read_image(path) {
             Ok(img) => self.add_image(&name, &GrayImage::from(&img)),
             Err(e) => {
                 self.images += 1;
-                let reason = SkipReason::Unreadable {
-                    error: e.to_string(),
-                };
+                let reason = SkipReason::Unreadable { error: e };
                 self.skipped.push(Skipped {
                     name,
                     reason: reason.clone(),

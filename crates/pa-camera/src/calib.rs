@@ -14,24 +14,55 @@
 //!   Optional: a missing entry means no distortion.
 //! - `image_width`, `image_height` (or `cameraResolution: [w, h]`).
 //!
-//! Errors name the file and the problem ([`CalibError`]).
+//! Hostile input: files are read through [`pa_io`] (only regular files, at most
+//! [`MAX_CALIBRATION_BYTES`]); the YAML parser nests at most [`MAX_NESTING`] levels and holds
+//! at most [`MAX_NODES`] values; every number of the camera must be finite.
+//!
+//! Errors name the file and the problem ([`CalibError`]) and never repeat the file's text:
+//! a file that is not a calibration (`--calib /etc/shadow`) is reported by line and column
+//! and what was expected, not by its content.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::diag::{fmt_position, json_error, toml_error, Located};
 use crate::{CameraError, CameraModel, Distortion, Intrinsics};
 
+/// The largest calibration file read (16 MiB): an OpenCV calibration with per-view
+/// extrinsics of thousands of views is well under 1 MiB.
+pub const MAX_CALIBRATION_BYTES: u64 = 16 << 20;
+
+/// The deepest nesting of YAML blocks and flow collections accepted (OpenCV writes 2).
+pub const MAX_NESTING: usize = 64;
+
+/// The most values (scalars, sequences, mappings) a YAML calibration may hold.
+pub const MAX_NODES: usize = 1_000_000;
+
+/// The field names of [`CameraModel`]'s TOML and JSON forms, which parse errors may repeat.
+const FIELDS: &[&str] = &[
+    "intrinsics",
+    "distortion",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "width",
+    "height",
+    "k1",
+    "k2",
+    "p1",
+    "p2",
+    "k3",
+];
+
 /// Errors while reading or writing a calibration file. `file` is the path, or the name the
-/// caller gave a string source.
+/// caller gave a string source. No message repeats the file's text.
 #[derive(Debug, thiserror::Error)]
 pub enum CalibError {
-    /// Reading or writing the file failed.
-    #[error("{file}: {source}")]
-    Io {
-        file: String,
-        #[source]
-        source: std::io::Error,
-    },
+    /// Reading or writing the file failed (names the file): not a regular file, over
+    /// [`MAX_CALIBRATION_BYTES`], not UTF-8, or an operating-system error.
+    #[error(transparent)]
+    Io(#[from] pa_io::IoError),
     /// A required field is absent.
     #[error("{file}: missing field `{field}`")]
     MissingField { file: String, field: &'static str },
@@ -43,13 +74,20 @@ pub enum CalibError {
         found: String,
         expected: &'static str,
     },
-    /// A value that must be a number is not.
-    #[error("{file}:{line}: `{field}` is not numeric: {value:?}")]
+    /// A value that must be a number is not; `found` says what it is instead.
+    #[error("{file}:{line}: `{field}` is not numeric (found {found})")]
     NonNumeric {
         file: String,
         field: String,
         line: usize,
-        value: String,
+        found: &'static str,
+    },
+    /// A number that must be finite is NaN or infinite.
+    #[error("{file}:{line}: `{field}` is not a finite number")]
+    NotFinite {
+        file: String,
+        field: String,
+        line: usize,
     },
     /// The text is not in the YAML subset OpenCV writes.
     #[error("{file}:{line}: syntax error: {message}")]
@@ -68,12 +106,29 @@ pub enum CalibError {
         #[source]
         source: CameraError,
     },
-    /// TOML or JSON (de)serialisation failed.
-    #[error("{file}: {message}")]
-    Serde { file: String, message: String },
+    /// TOML or JSON (de)serialisation failed: `line` and `column` are 1-based (0 when
+    /// unknown); `message` says what was expected, with quoted values removed.
+    #[error("{file}{}: {message}", fmt_position(*line, *column))]
+    Serde {
+        file: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
     /// The file name does not say which format to use.
     #[error("{file}: unknown calibration format (use .yaml/.yml, .toml or .json)")]
     UnknownFormat { file: String },
+}
+
+impl CalibError {
+    fn serde(file: &str, what: &str, e: Located) -> Self {
+        Self::Serde {
+            file: file.to_string(),
+            line: e.line,
+            column: e.column,
+            message: format!("not a valid {what} calibration: {}", e.message),
+        }
+    }
 }
 
 /// Calibration file formats.
@@ -100,15 +155,23 @@ impl CalibFormat {
     }
 }
 
+/// Reads a calibration file's text through [`pa_io`]: a regular file of at most
+/// [`MAX_CALIBRATION_BYTES`] (a FIFO or a device is refused at once, not waited on).
+fn read_calibration_text(path: &Path) -> Result<String, CalibError> {
+    Ok(pa_io::read_to_string_regular(
+        path,
+        MAX_CALIBRATION_BYTES,
+        "a calibration file",
+    )?)
+}
+
 /// Loads a camera model from a calibration file; the format comes from the extension, or
-/// from the content when the extension is unknown (`%YAML`, `{`, else TOML).
+/// from the content when the extension is unknown (`%YAML`, `{`, else TOML). Only a regular
+/// file of at most [`MAX_CALIBRATION_BYTES`] is read.
 pub fn load_calibration(path: impl AsRef<Path>) -> Result<CameraModel, CalibError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| CalibError::Io {
-        file: file.clone(),
-        source,
-    })?;
+    let text = read_calibration_text(path)?;
     let format = CalibFormat::from_path(path).unwrap_or_else(|| {
         let t = text.trim_start();
         if t.starts_with('%') || t.contains("!!opencv-matrix") {
@@ -122,7 +185,9 @@ pub fn load_calibration(path: impl AsRef<Path>) -> Result<CameraModel, CalibErro
     parse_calibration(&text, format, &file)
 }
 
-/// Parses calibration text in the given format; `file` names the source in errors.
+/// Parses calibration text in the given format; `file` names the source in errors. The
+/// camera is checked ([`CameraModel::validate`]): finite intrinsics and distortion, positive
+/// focal lengths, a sane image size.
 pub fn parse_calibration(
     text: &str,
     format: CalibFormat,
@@ -130,22 +195,15 @@ pub fn parse_calibration(
 ) -> Result<CameraModel, CalibError> {
     let model: CameraModel = match format {
         CalibFormat::OpencvYaml => return from_opencv_yaml(text, file),
-        CalibFormat::Toml => toml::from_str(text).map_err(|e| CalibError::Serde {
-            file: file.to_string(),
-            message: e.to_string(),
-        })?,
-        CalibFormat::Json => serde_json::from_str(text).map_err(|e| CalibError::Serde {
-            file: file.to_string(),
-            message: e.to_string(),
-        })?,
+        CalibFormat::Toml => toml::from_str(text)
+            .map_err(|e| CalibError::serde(file, "TOML", toml_error(text, &e, FIELDS)))?,
+        CalibFormat::Json => serde_json::from_str(text)
+            .map_err(|e| CalibError::serde(file, "JSON", json_error(&e, FIELDS)))?,
     };
-    model
-        .intrinsics
-        .validate()
-        .map_err(|source| CalibError::Invalid {
-            file: file.to_string(),
-            source,
-        })?;
+    model.validate().map_err(|source| CalibError::Invalid {
+        file: file.to_string(),
+        source,
+    })?;
     Ok(model)
 }
 
@@ -155,27 +213,28 @@ pub fn format_calibration(
     format: CalibFormat,
     file: &str,
 ) -> Result<String, CalibError> {
+    let failed = |message: String| CalibError::Serde {
+        file: file.to_string(),
+        line: 0,
+        column: 0,
+        message,
+    };
     match format {
         CalibFormat::OpencvYaml => Ok(to_opencv_yaml(model)),
-        CalibFormat::Toml => toml::to_string_pretty(model).map_err(|e| CalibError::Serde {
-            file: file.to_string(),
-            message: e.to_string(),
-        }),
-        CalibFormat::Json => serde_json::to_string_pretty(model).map_err(|e| CalibError::Serde {
-            file: file.to_string(),
-            message: e.to_string(),
-        }),
+        CalibFormat::Toml => toml::to_string_pretty(model).map_err(|e| failed(e.to_string())),
+        CalibFormat::Json => serde_json::to_string_pretty(model).map_err(|e| failed(e.to_string())),
     }
 }
 
-/// Saves a camera model; the format comes from the extension.
+/// Saves a camera model; the format comes from the extension. The file is written atomically
+/// ([`pa_io::write_atomic`]): an existing file that is not a regular file is never replaced.
 pub fn save_calibration(model: &CameraModel, path: impl AsRef<Path>) -> Result<(), CalibError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let format = CalibFormat::from_path(path)
-        .ok_or_else(|| CalibError::UnknownFormat { file: file.clone() })?;
+    let format =
+        CalibFormat::from_path(path).ok_or(CalibError::UnknownFormat { file: file.clone() })?;
     let text = format_calibration(model, format, &file)?;
-    std::fs::write(path, text).map_err(|source| CalibError::Io { file, source })
+    Ok(pa_io::write_atomic(path, text.as_bytes())?)
 }
 
 /// Writes the model as OpenCV calibration YAML (readable by `cv::FileStorage`).
@@ -233,24 +292,20 @@ fn fmt_f64(v: f64) -> String {
     }
 }
 
-/// Loads an OpenCV calibration YAML file.
+/// Loads an OpenCV calibration YAML file (a regular file of at most
+/// [`MAX_CALIBRATION_BYTES`]).
 pub fn load_opencv_yaml(path: impl AsRef<Path>) -> Result<CameraModel, CalibError> {
     let path = path.as_ref();
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| CalibError::Io {
-        file: file.clone(),
-        source,
-    })?;
-    from_opencv_yaml(&text, &file)
+    let text = read_calibration_text(path)?;
+    from_opencv_yaml(&text, &path.display().to_string())
 }
 
-/// Saves a camera model as OpenCV calibration YAML.
+/// Saves a camera model as OpenCV calibration YAML, atomically ([`pa_io::write_atomic`]).
 pub fn save_opencv_yaml(model: &CameraModel, path: impl AsRef<Path>) -> Result<(), CalibError> {
-    let path = path.as_ref();
-    std::fs::write(path, to_opencv_yaml(model)).map_err(|source| CalibError::Io {
-        file: path.display().to_string(),
-        source,
-    })
+    Ok(pa_io::write_atomic(
+        path.as_ref(),
+        to_opencv_yaml(model).as_bytes(),
+    )?)
 }
 
 /// Parses OpenCV calibration YAML text; `file` names the source in errors.
@@ -272,6 +327,7 @@ pub fn from_opencv_yaml(text: &str, file: &str) -> Result<CameraModel, CalibErro
             expected: "3x3",
         });
     }
+    finite(&kd, "camera_matrix", km.line, file)?;
     let scale = kd[8];
     if (kd[6].abs() > 1e-12) || (kd[7].abs() > 1e-12) || (scale - 1.0).abs() > 1e-9 {
         return Err(CalibError::Unsupported {
@@ -298,6 +354,7 @@ pub fn from_opencv_yaml(text: &str, file: &str) -> Result<CameraModel, CalibErro
     let mut dist = Distortion::default();
     if let Some(dn) = get(&["distortion_coefficients", "dist_coeffs", "distCoeffs", "D"]) {
         let (r, c, dd) = matrix(dn, "distortion_coefficients", file)?;
+        finite(&dd, "distortion_coefficients", dn.line, file)?;
         let n = dd.len();
         if !(r == 1 || c == 1) || ![4usize, 5, 8, 12, 14].contains(&n) {
             return Err(CalibError::WrongSize {
@@ -307,7 +364,7 @@ pub fn from_opencv_yaml(text: &str, file: &str) -> Result<CameraModel, CalibErro
                 expected: "a 1xN or Nx1 vector, N in {4, 5, 8, 12, 14}",
             });
         }
-        if let Some(extra) = dd.iter().skip(5).find(|v| v.abs() > 0.0) {
+        if let Some(extra) = dd.iter().skip(5).find(|v| **v != 0.0) {
             return Err(CalibError::Unsupported {
                 file: f(),
                 message: format!(
@@ -368,13 +425,27 @@ pub fn from_opencv_yaml(text: &str, file: &str) -> Result<CameraModel, CalibErro
         width,
         height,
     };
-    intrinsics
-        .validate()
-        .map_err(|source| CalibError::Invalid { file: f(), source })?;
-    Ok(CameraModel {
+    let model = CameraModel {
         intrinsics,
         distortion: dist,
-    })
+    };
+    model
+        .validate()
+        .map_err(|source| CalibError::Invalid { file: f(), source })?;
+    Ok(model)
+}
+
+/// Fails naming the first element of `values` (a matrix's data, row-major) that is NaN or
+/// infinite.
+fn finite(values: &[f64], field: &str, line: usize, file: &str) -> Result<(), CalibError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(CalibError::NotFinite {
+            file: file.into(),
+            field: format!("{field}.data[{i}]"),
+            line,
+        }),
+        None => Ok(()),
+    }
 }
 
 fn to_u32(v: f64, field: &str, line: usize, file: &str) -> Result<u32, CalibError> {
@@ -385,25 +456,33 @@ fn to_u32(v: f64, field: &str, line: usize, file: &str) -> Result<u32, CalibErro
             file: file.into(),
             field: field.into(),
             line,
-            value: v.to_string(),
+            found: "a number that is not a pixel count",
         })
     }
 }
 
+/// What a node holds, for errors that must not repeat the file's text.
+fn kind(v: &Value) -> &'static str {
+    match v {
+        Value::Scalar(_) => "text",
+        Value::Seq(_) => "a sequence",
+        Value::Map(_) => "a mapping",
+    }
+}
+
 fn integer(n: &Node, field: &str, file: &str) -> Result<u32, CalibError> {
+    let bad = |found| CalibError::NonNumeric {
+        file: file.into(),
+        field: field.into(),
+        line: n.line,
+        found,
+    };
     match &n.value {
-        Value::Scalar(s) => s.trim().parse::<u32>().map_err(|_| CalibError::NonNumeric {
-            file: file.into(),
-            field: field.into(),
-            line: n.line,
-            value: s.clone(),
-        }),
-        _ => Err(CalibError::NonNumeric {
-            file: file.into(),
-            field: field.into(),
-            line: n.line,
-            value: "<not a scalar>".into(),
-        }),
+        Value::Scalar(s) => s
+            .trim()
+            .parse::<u32>()
+            .map_err(|_| bad("text that is not a whole number in 0..=4294967295")),
+        v => Err(bad(kind(v))),
     }
 }
 
@@ -419,7 +498,7 @@ fn number(s: &str, field: &str, line: usize, file: &str) -> Result<f64, CalibErr
         file: file.into(),
         field: field.into(),
         line,
-        value: s.to_string(),
+        found: "text",
     })
 }
 
@@ -429,25 +508,19 @@ fn numbers(n: &Node, field: &str, file: &str) -> Result<Vec<f64>, CalibError> {
             .iter()
             .map(|it| match &it.value {
                 Value::Scalar(s) => number(s, field, it.line, file),
-                _ => Err(CalibError::NonNumeric {
+                v => Err(CalibError::NonNumeric {
                     file: file.into(),
                     field: field.into(),
                     line: it.line,
-                    value: "<nested value>".into(),
+                    found: kind(v),
                 }),
             })
             .collect(),
-        Value::Scalar(s) => Err(CalibError::NonNumeric {
+        v => Err(CalibError::NonNumeric {
             file: file.into(),
             field: field.into(),
             line: n.line,
-            value: s.clone(),
-        }),
-        Value::Map(_) => Err(CalibError::NonNumeric {
-            file: file.into(),
-            field: field.into(),
-            line: n.line,
-            value: "<mapping>".into(),
+            found: kind(v),
         }),
     }
 }
@@ -467,7 +540,7 @@ fn matrix(n: &Node, field: &str, file: &str) -> Result<(usize, usize, Vec<f64>),
             let rows = integer(sub("rows")?, &format!("{field}.rows"), file)? as usize;
             let cols = integer(sub("cols")?, &format!("{field}.cols"), file)? as usize;
             let data = numbers(sub("data")?, &format!("{field}.data"), file)?;
-            if data.len() != rows * cols {
+            if rows.checked_mul(cols) != Some(data.len()) {
                 return Err(CalibError::WrongSize {
                     file: file.into(),
                     field: field.into(),
@@ -557,6 +630,13 @@ fn parse_yaml(text: &str, file: &str) -> Result<Node, CalibError> {
             });
         }
         let indent = no_comment.len() - no_comment.trim_start().len();
+        if lines.len() >= MAX_NODES {
+            return Err(CalibError::Syntax {
+                file: file.into(),
+                line: i + 1,
+                message: format!("more than {MAX_NODES} lines with values"),
+            });
+        }
         lines.push(Line {
             number: i + 1,
             indent,
@@ -567,6 +647,8 @@ fn parse_yaml(text: &str, file: &str) -> Result<Node, CalibError> {
         lines,
         pos: 0,
         file,
+        depth: 0,
+        nodes: 0,
     };
     if p.lines.is_empty() {
         return Ok(Node {
@@ -582,10 +664,17 @@ fn parse_yaml(text: &str, file: &str) -> Result<Node, CalibError> {
     Ok(node)
 }
 
+/// A recursive-descent parser over the lines. Recursion (blocks nested by indentation, flow
+/// collections nested by brackets) is bounded by [`MAX_NESTING`] and the values made by
+/// [`MAX_NODES`], so no input overflows the stack or amplifies into gigabytes.
 struct Parser<'a> {
     lines: Vec<Line<'a>>,
     pos: usize,
     file: &'a str,
+    /// Blocks and flow collections open now.
+    depth: usize,
+    /// Values made so far.
+    nodes: usize,
 }
 
 impl<'a> Parser<'a> {
@@ -597,8 +686,39 @@ impl<'a> Parser<'a> {
         }
     }
 
+    /// Enters a block or flow collection opened on `line`; pair with [`Parser::leave`].
+    fn enter(&mut self, line: usize) -> Result<(), CalibError> {
+        if self.depth >= MAX_NESTING {
+            return Err(self.err(line, format!("nested deeper than {MAX_NESTING} levels")));
+        }
+        self.depth += 1;
+        Ok(())
+    }
+
+    fn leave(&mut self) {
+        self.depth -= 1;
+    }
+
+    /// Counts a new value made on `line`.
+    fn count(&mut self, line: usize) -> Result<(), CalibError> {
+        self.nodes += 1;
+        if self.nodes > MAX_NODES {
+            return Err(self.err(line, format!("more than {MAX_NODES} values")));
+        }
+        Ok(())
+    }
+
     /// Parses a block (mapping or sequence) whose lines have exactly `indent`.
     fn block(&mut self, indent: usize) -> Result<Node, CalibError> {
+        let line = self.lines[self.pos].number;
+        self.enter(line)?;
+        let node = self.block_inner(indent);
+        self.leave();
+        node
+    }
+
+    fn block_inner(&mut self, indent: usize) -> Result<Node, CalibError> {
+        self.count(self.lines[self.pos].number)?;
         let first = &self.lines[self.pos];
         let line = first.number;
         if first.text.starts_with("- ") || first.text == "-" {
@@ -626,9 +746,9 @@ impl<'a> Parser<'a> {
         while self.pos < self.lines.len() && self.lines[self.pos].indent == indent {
             let l = &self.lines[self.pos];
             let number = l.number;
-            let (key, rest) = split_key(l.text).ok_or_else(|| {
-                self.err(number, format!("expected `key: value`, found {:?}", l.text))
-            })?;
+            // The line is not repeated: the file may not be ours.
+            let (key, rest) = split_key(l.text)
+                .ok_or_else(|| self.err(number, "expected `key: value` (a colon and a space)"))?;
             self.pos += 1;
             let mut rest = rest.trim();
             // Tags such as `!!opencv-matrix` or `!<tag:yaml.org,2002:opencv-matrix>`.
@@ -657,6 +777,7 @@ impl<'a> Parser<'a> {
             let ind = self.lines[self.pos].indent;
             self.block(ind)
         } else {
+            self.count(line)?;
             Ok(Node {
                 line,
                 value: Value::Scalar(String::new()),
@@ -668,12 +789,19 @@ impl<'a> Parser<'a> {
     fn inline_value(&mut self, rest: &str, line: usize) -> Result<Node, CalibError> {
         if rest.starts_with('[') || rest.starts_with('{') {
             let mut text = rest.to_string();
-            while !flow_balanced(&text) {
+            // Scanned once, piece by piece: rescanning the whole text for each added line
+            // would be quadratic in the file's size.
+            let mut balance = FlowBalance::default();
+            balance.feed(rest);
+            while !balance.closed() {
                 if self.pos >= self.lines.len() {
                     return Err(self.err(line, "unterminated flow collection (missing `]` or `}`)"));
                 }
+                let next = self.lines[self.pos].text;
                 text.push(' ');
-                text.push_str(self.lines[self.pos].text);
+                text.push_str(next);
+                balance.feed(" ");
+                balance.feed(next);
                 self.pos += 1;
             }
             let chars: Vec<char> = text.chars().collect();
@@ -685,6 +813,7 @@ impl<'a> Parser<'a> {
             }
             Ok(node)
         } else {
+            self.count(line)?;
             Ok(Node {
                 line,
                 value: Value::Scalar(unquote(rest)),
@@ -692,74 +821,107 @@ impl<'a> Parser<'a> {
         }
     }
 
-    fn flow(&self, c: &[char], i: &mut usize, line: usize) -> Result<Node, CalibError> {
+    /// A flow value at `c[*i]`: a sequence, a mapping or a scalar.
+    fn flow(&mut self, c: &[char], i: &mut usize, line: usize) -> Result<Node, CalibError> {
         skip_ws(c, i);
         match c.get(*i) {
-            Some('[') => {
-                *i += 1;
-                let mut items = Vec::new();
-                loop {
-                    skip_ws(c, i);
-                    match c.get(*i) {
-                        Some(']') => {
-                            *i += 1;
-                            break;
-                        }
-                        Some(',') => {
-                            *i += 1;
-                        }
-                        Some(_) => items.push(self.flow(c, i, line)?),
-                        None => return Err(self.err(line, "missing `]`")),
-                    }
-                }
+            Some('[' | '{') => {
+                self.enter(line)?;
+                let node = self.flow_collection(c, i, line);
+                self.leave();
+                node
+            }
+            Some(']' | '}') => {
+                Err(self.err(line, "a flow collection closes where a value was expected"))
+            }
+            Some(_) => {
+                self.count(line)?;
                 Ok(Node {
                     line,
-                    value: Value::Seq(items),
+                    value: Value::Scalar(self.flow_scalar(c, i, false)),
                 })
             }
-            Some('{') => {
-                *i += 1;
-                let mut entries = Vec::new();
-                loop {
-                    skip_ws(c, i);
-                    match c.get(*i) {
-                        Some('}') => {
-                            *i += 1;
-                            break;
-                        }
-                        Some(',') => {
-                            *i += 1;
-                        }
-                        Some(_) => {
-                            let key = self.flow_scalar(c, i, true);
-                            skip_ws(c, i);
-                            if c.get(*i) != Some(&':') {
-                                return Err(self.err(line, "expected `:` in flow mapping"));
-                            }
-                            *i += 1;
-                            skip_ws(c, i);
-                            if c.get(*i) == Some(&'!') {
-                                while *i < c.len() && !c[*i].is_whitespace() {
-                                    *i += 1;
-                                }
-                            }
-                            let v = self.flow(c, i, line)?;
-                            entries.push((key, v));
-                        }
-                        None => return Err(self.err(line, "missing `}`")),
-                    }
-                }
-                Ok(Node {
-                    line,
-                    value: Value::Map(entries),
-                })
-            }
-            Some(_) => Ok(Node {
-                line,
-                value: Value::Scalar(self.flow_scalar(c, i, false)),
-            }),
             None => Err(self.err(line, "missing value")),
         }
+    }
+
+    /// The sequence or mapping opening at `c[*i]`.
+    fn flow_collection(
+        &mut self,
+        c: &[char],
+        i: &mut usize,
+        line: usize,
+    ) -> Result<Node, CalibError> {
+        self.count(line)?;
+        let open = c[*i];
+        *i += 1;
+        if open == '[' {
+            let mut items = Vec::new();
+            loop {
+                skip_ws(c, i);
+                match c.get(*i) {
+                    Some(']') => {
+                        *i += 1;
+                        break;
+                    }
+                    Some(',') => {
+                        *i += 1;
+                    }
+                    Some('}') => return Err(self.err(line, "`}` closes a `[` sequence")),
+                    Some(_) => items.push(self.flow(c, i, line)?),
+                    None => return Err(self.err(line, "missing `]`")),
+                }
+            }
+            return Ok(Node {
+                line,
+                value: Value::Seq(items),
+            });
+        }
+        let mut entries = Vec::new();
+        loop {
+            skip_ws(c, i);
+            match c.get(*i) {
+                Some('}') => {
+                    *i += 1;
+                    break;
+                }
+                Some(',') => {
+                    *i += 1;
+                }
+                Some(']') => return Err(self.err(line, "`]` closes a `{` mapping")),
+                Some(_) => {
+                    let key = self.flow_scalar(c, i, true);
+                    skip_ws(c, i);
+                    if c.get(*i) != Some(&':') {
+                        return Err(self.err(line, "expected `:` in flow mapping"));
+                    }
+                    *i += 1;
+                    skip_ws(c, i);
+                    if c.get(*i) == Some(&'!') {
+                        while *i < c.len() && !c[*i].is_whitespace() {
+                            *i += 1;
+                        }
+                    }
+                    // An empty value (`{a: }`, `{a: ,b: 1}`) is an empty scalar.
+                    let v = match c.get(*i) {
+                        Some('}' | ',') => {
+                            self.count(line)?;
+                            Node {
+                                line,
+                                value: Value::Scalar(String::new()),
+                            }
+                        }
+                        _ => self.flow(c, i, line)?,
+                    };
+                    entries.push((key, v));
+                }
+                None => return Err(self.err(line, "missing `}`")),
+            }
+        }
+        Ok(Node {
+            line,
+            value: Value::Map(entries),
+        })
     }
 
     fn flow_scalar(&self, c: &[char], i: &mut usize, is_key: bool) -> String {
@@ -793,22 +955,33 @@ fn skip_ws(c: &[char], i: &mut usize) {
     }
 }
 
-fn flow_balanced(s: &str) -> bool {
-    let mut depth = 0i32;
-    let mut quote: Option<char> = None;
-    for ch in s.chars() {
-        match quote {
-            Some(q) if ch == q => quote = None,
-            Some(_) => {}
-            None => match ch {
-                '"' | '\'' => quote = Some(ch),
-                '[' | '{' => depth += 1,
-                ']' | '}' => depth -= 1,
-                _ => {}
-            },
+/// Whether the brackets of a flow collection, fed piece by piece, are closed (quotes
+/// respected).
+#[derive(Default)]
+struct FlowBalance {
+    depth: i64,
+    quote: Option<char>,
+}
+
+impl FlowBalance {
+    fn feed(&mut self, s: &str) {
+        for ch in s.chars() {
+            match self.quote {
+                Some(q) if ch == q => self.quote = None,
+                Some(_) => {}
+                None => match ch {
+                    '"' | '\'' => self.quote = Some(ch),
+                    '[' | '{' => self.depth += 1,
+                    ']' | '}' => self.depth -= 1,
+                    _ => {}
+                },
+            }
         }
     }
-    depth <= 0
+
+    fn closed(&self) -> bool {
+        self.depth <= 0
+    }
 }
 
 /// Splits `key: rest` (the colon must be followed by whitespace or end the line).
@@ -1006,13 +1179,14 @@ extrinsic_parameters: !!opencv-matrix
         let nan = "image_width: 640\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 500., 0., abc, 0., 500., 240., 0., 0., 1. ]\n";
         let e = from_opencv_yaml(nan, "c.yaml").unwrap_err();
         match &e {
-            CalibError::NonNumeric { value, line, .. } => {
-                assert_eq!(value, "abc");
+            CalibError::NonNumeric { found, line, .. } => {
+                assert_eq!(*found, "text");
                 assert_eq!(*line, 7);
             }
             other => panic!("unexpected {other}"),
         }
         assert!(e.to_string().contains("c.yaml"));
+        assert!(!e.to_string().contains("abc"), "{e}");
 
         let no_w =
             "image_height: 480\ncamera_matrix: [500., 0., 320., 0., 500., 240., 0., 0., 1.]\n";
@@ -1068,7 +1242,7 @@ extrinsic_parameters: !!opencv-matrix
         let e = save_calibration(&m, dir.join("c.txt")).unwrap_err();
         assert!(matches!(e, CalibError::UnknownFormat { .. }));
         let e = load_calibration(dir.join("missing.yaml")).unwrap_err();
-        assert!(matches!(e, CalibError::Io { .. }) && e.to_string().contains("missing.yaml"));
+        assert!(matches!(e, CalibError::Io(_)) && e.to_string().contains("missing.yaml"));
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

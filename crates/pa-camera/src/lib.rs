@@ -18,9 +18,11 @@
 //! centre of pixel (0, 0) is at (0.5, 0.5); `pa-track` converts once, at its boundary.
 
 pub mod calib;
+pub mod diag;
 
 pub use calib::{
     from_opencv_yaml, load_calibration, save_calibration, to_opencv_yaml, CalibError, CalibFormat,
+    MAX_CALIBRATION_BYTES,
 };
 
 use glam::{DMat3, DVec2, DVec3, Mat4, Vec3};
@@ -37,9 +39,15 @@ pub enum CameraError {
         reason: &'static str,
     },
     /// The image size is zero or absurd.
-    #[error("invalid image size {width}x{height}")]
+    #[error("invalid image size {width}x{height} (each side must be in 1..={MAX_IMAGE_SIDE})")]
     InvalidSize { width: u32, height: u32 },
+    /// A distortion coefficient is not a finite number.
+    #[error("invalid distortion: {field} = {value} (must be finite)")]
+    InvalidDistortion { field: &'static str, value: f64 },
 }
+
+/// The largest image side, in pixels, that intrinsics may describe.
+pub const MAX_IMAGE_SIDE: u32 = 65_536;
 
 /// OpenCV pinhole intrinsics in pixels (pixel centres at integer coordinates).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -80,7 +88,11 @@ impl Intrinsics {
 
     /// Checks that every parameter is usable.
     pub fn validate(&self) -> Result<(), CameraError> {
-        if self.width == 0 || self.height == 0 || self.width > 65_536 || self.height > 65_536 {
+        if self.width == 0
+            || self.height == 0
+            || self.width > MAX_IMAGE_SIDE
+            || self.height > MAX_IMAGE_SIDE
+        {
             return Err(CameraError::InvalidSize {
                 width: self.width,
                 height: self.height,
@@ -188,6 +200,22 @@ impl Distortion {
         *self == Self::default()
     }
 
+    /// Checks that every coefficient is a finite number.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        for (field, value) in [
+            ("k1", self.k1),
+            ("k2", self.k2),
+            ("p1", self.p1),
+            ("p2", self.p2),
+            ("k3", self.k3),
+        ] {
+            if !value.is_finite() {
+                return Err(CameraError::InvalidDistortion { field, value });
+            }
+        }
+        Ok(())
+    }
+
     /// Applies distortion to a normalised image point.
     pub fn distort(&self, n: DVec2) -> DVec2 {
         let (x, y) = (n.x, n.y);
@@ -231,6 +259,13 @@ impl CameraModel {
             intrinsics,
             distortion: Distortion::default(),
         }
+    }
+
+    /// Checks the intrinsics and the distortion ([`Intrinsics::validate`],
+    /// [`Distortion::validate`]).
+    pub fn validate(&self) -> Result<(), CameraError> {
+        self.intrinsics.validate()?;
+        self.distortion.validate()
     }
 
     /// Projects a point in camera coordinates (OpenCV axes, metres) to pixels.

@@ -25,24 +25,88 @@
 //! upright = true                # prop +Y up (marker -Z), prop front +Z toward marker +Y
 //! yaw_deg = 0.0                 # then a turn about the prop's up axis
 //! ```
+//!
+//! Hostile input: the file is read through [`pa_io`] (a regular file of at most
+//! [`MAX_SHOT_BYTES`]; a FIFO or a device is refused at once), every number must be finite,
+//! fixed-size vectors must have exactly their length, tag ids must be codes of the family and
+//! appear once, and a parse error gives the line, the column and what was expected, never the
+//! file's text.
 
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec3};
-use serde::{Deserialize, Serialize};
+use pa_camera::diag::{fmt_position, toml_error};
+use serde::{Deserialize, Deserializer, Serialize};
 
-/// Errors reading or checking a shot.
+/// The largest shot file read (4 MiB): a shot is a few hundred bytes, a board of every
+/// tag36h11 code about 40 KiB.
+pub const MAX_SHOT_BYTES: u64 = 4 << 20;
+
+/// The field names of the shot, which parse errors may repeat.
+const FIELDS: &[&str] = &[
+    "model",
+    "animation",
+    "fps",
+    "key_poses",
+    "name",
+    "frame",
+    "marker_id",
+    "present_key",
+    "camera",
+    "calibration",
+    "fov_y_deg",
+    "marker",
+    "family",
+    "tags",
+    "id",
+    "center_m",
+    "size_m",
+    "placement",
+    "translation_m",
+    "upright",
+    "yaw_deg",
+];
+
+/// Errors reading or checking a shot; each names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ShotError {
-    #[error("{path}: cannot read: {source}")]
-    Io {
+    /// Not a regular file, over [`MAX_SHOT_BYTES`], not UTF-8, or an operating-system error.
+    #[error(transparent)]
+    Io(#[from] pa_io::IoError),
+    /// Not TOML, or not a shot's schema: `line` and `column` are 1-based (0 when unknown) and
+    /// `message` says what was expected, with quoted values removed.
+    #[error("{}{}: not a valid shot file: {message}", path.display(), fmt_position(*line, *column))]
+    Parse {
         path: PathBuf,
-        source: std::io::Error,
+        line: usize,
+        column: usize,
+        message: String,
     },
-    #[error("{path}: not a valid shot file: {message}")]
-    Parse { path: PathBuf, message: String },
-    #[error("{path}: {message}")]
+    /// The shot parses but cannot be used.
+    #[error("{}: {message}", path.display())]
     Invalid { path: PathBuf, message: String },
+}
+
+/// Exactly `N` numbers (serde's arrays would silently drop extra ones from TOML).
+fn exactly<'de, D, T, const N: usize>(d: D, field: &str) -> Result<[T; N], D::Error>
+where
+    D: Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    let v = Vec::<T>::deserialize(d)?;
+    let n = v.len();
+    v.try_into().map_err(|_| {
+        serde::de::Error::custom(format!("`{field}` needs exactly {N} numbers, found {n}"))
+    })
+}
+
+fn center_m<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    exactly(d, "center_m")
+}
+
+fn translation_m<'de, D: Deserializer<'de>>(d: D) -> Result<[f32; 3], D::Error> {
+    exactly(d, "translation_m")
 }
 
 /// A key pose: an animation frame that exists as a physical prop.
@@ -82,6 +146,7 @@ fn default_family() -> String {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShotTag {
     pub id: u32,
+    #[serde(deserialize_with = "center_m")]
     pub center_m: [f64; 2],
     pub size_m: f64,
 }
@@ -89,7 +154,7 @@ pub struct ShotTag {
 /// Where the prop stands on the marker.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Placement {
-    #[serde(default)]
+    #[serde(default, deserialize_with = "translation_m")]
     pub translation_m: [f32; 3],
     #[serde(default = "yes")]
     pub upright: bool,
@@ -150,14 +215,23 @@ fn default_fps() -> f32 {
 
 impl Shot {
     /// Reads and checks a shot file (paths inside stay relative to it; see [`Shot::resolve`]).
+    /// Only a regular file of at most [`MAX_SHOT_BYTES`] is read.
     pub fn load(path: &Path) -> Result<Self, ShotError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ShotError::Io {
-            path: path.into(),
-            source,
-        })?;
-        let shot: Shot = toml::from_str(&text).map_err(|e| ShotError::Parse {
-            path: path.into(),
-            message: e.to_string(),
+        let text = pa_io::read_to_string_regular(path, MAX_SHOT_BYTES, "a shot file")?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks shot TOML; `path` names it in errors (and is where relative paths
+    /// inside start from).
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ShotError> {
+        let shot: Shot = toml::from_str(text).map_err(|e| {
+            let e = toml_error(text, &e, FIELDS);
+            ShotError::Parse {
+                path: path.into(),
+                line: e.line,
+                column: e.column,
+                message: e.message,
+            }
         })?;
         shot.check(path)?;
         Ok(shot)
@@ -195,18 +269,84 @@ impl Shot {
                 )));
             }
         }
+        let mut names = HashSet::new();
+        for k in &self.key_poses {
+            if !names.insert(k.name.as_str()) {
+                return Err(bad(format!("key pose {:?} is named twice", k.name)));
+            }
+        }
         if self.marker.tags.is_empty() {
             return Err(bad("the marker needs at least one tag".into()));
         }
-        for t in &self.marker.tags {
+        // The value is not repeated (a file that is not ours may have parsed this far).
+        let family: pa_track::TagFamily = self.marker.family.parse().map_err(|_| {
+            let known: Vec<&str> = pa_track::TagFamily::ALL.iter().map(|f| f.name()).collect();
+            bad(format!(
+                "[marker] family is not a tag family (one of {})",
+                known.join(", ")
+            ))
+        })?;
+        let codes = pa_track::family_layout(family)
+            .map_err(|e| bad(format!("[marker] family: {e}")))?
+            .id_count;
+        let mut ids = HashSet::new();
+        for (i, t) in self.marker.tags.iter().enumerate() {
+            let at = format!("[[marker.tags]] {} (id {})", i + 1, t.id);
+            if t.id >= codes {
+                return Err(bad(format!(
+                    "{at}: {family} has no id {} (ids 0..={})",
+                    t.id,
+                    codes.saturating_sub(1)
+                )));
+            }
+            if !ids.insert(t.id) {
+                return Err(bad(format!("{at}: tag id {} is on the board twice", t.id)));
+            }
             if !(t.size_m.is_finite() && t.size_m > 0.0) {
-                return Err(bad(format!("tag {} has size {} m", t.id, t.size_m)));
+                return Err(bad(format!("{at}: size_m is {} m", t.size_m)));
+            }
+            if let Some(axis) = t.center_m.iter().position(|v| !v.is_finite()) {
+                return Err(bad(format!(
+                    "{at}: center_m[{axis}] is not a finite number"
+                )));
+            }
+        }
+        let mut marker_ids = HashSet::new();
+        for k in &self.key_poses {
+            let Some(id) = k.marker_id else { continue };
+            if ids.contains(&id) {
+                return Err(bad(format!(
+                    "key pose {:?}: marker_id {id} is also a tag of the board",
+                    k.name
+                )));
+            }
+            if !marker_ids.insert(id) {
+                return Err(bad(format!(
+                    "key pose {:?}: marker_id {id} is used by another key pose",
+                    k.name
+                )));
+            }
+        }
+        if let Some(fov) = self.camera.fov_y_deg {
+            if !(fov.is_finite() && fov > 1.0 && fov < 179.0) {
+                return Err(bad(format!(
+                    "[camera] fov_y_deg must be in (1, 179), got {fov}"
+                )));
             }
         }
         if self.camera.calibration.is_none() && self.camera.fov_y_deg.is_none() {
             return Err(bad(
                 "[camera] needs calibration = \"FILE\" or fov_y_deg".into()
             ));
+        }
+        let p = &self.placement;
+        if let Some(axis) = p.translation_m.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "[placement] translation_m[{axis}] is not a finite number"
+            )));
+        }
+        if !p.yaw_deg.is_finite() {
+            return Err(bad("[placement] yaw_deg is not a finite number".into()));
         }
         Ok(())
     }

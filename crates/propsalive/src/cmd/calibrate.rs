@@ -13,8 +13,11 @@
 //!   AprilTag board of `propsalive marker --board` with the same `--size-mm`, `--gap-mm` and
 //!   `--first-id`.
 //! - k3 is fixed at 0 unless `--k3` (wide-angle lenses); `--zero-tangent` fixes p1 = p2 = 0.
-//! - The output must be `.yaml` or `.yml`; it is written atomically and an existing file is
-//!   kept unless `--force`. That is checked before any image is read.
+//! - The output must be `.yaml` or `.yml`; it is written atomically (`pa_io`) and an existing
+//!   file is kept unless `--force`. That is checked before any image is read. A FIFO, device
+//!   or link in its place is never replaced, even with `--force`.
+//! - `--board`: every id from `--first-id` to `--first-id + ROWS * COLS - 1` must be a code of
+//!   `--family` (tag36h11 has 587), checked before the board is built.
 
 use std::path::{Path, PathBuf};
 
@@ -142,6 +145,22 @@ pub fn resolve(args: &Args) -> Result<Config> {
                 None => bail!("--gap-mm is required with --board (the marker's label prints it)"),
             };
             let family: TagFamily = args.family.parse()?;
+            // The ids first_id.. first_id + rows * cols - 1 must all be codes of the family
+            // (checked arithmetic: a huge --first-id must not wrap around).
+            let codes = pa_track::family_layout(family)?.id_count;
+            let end = rows
+                .checked_mul(cols)
+                .and_then(|n| args.first_id.checked_add(n));
+            if end.is_none_or(|end| end > codes) {
+                bail!(
+                    "--board {b:?} --first-id {}: the board needs ids {}..={} but {family} has \
+                     {codes} codes (ids 0..={})",
+                    args.first_id,
+                    args.first_id,
+                    args.first_id as u64 + rows as u64 * cols as u64 - 1,
+                    codes.saturating_sub(1)
+                );
+            }
             let board = Board::grid(
                 family,
                 rows,
@@ -277,12 +296,17 @@ pub fn run(args: Args) -> Result<()> {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating folder {}", dir.display()))?;
     }
-    // Checked again just before writing: another process may have made it meanwhile.
-    if cfg.out.exists() && !args.force {
+    // Atomic either way (pa_io): without --force the name is taken only if still free (another
+    // process may have made it meanwhile); with it, a file that is not a regular file (a FIFO,
+    // a device, a link) is still never replaced.
+    if args.force {
+        pa_model::export::write_atomic(&cfg.out, text.as_bytes())
+            .with_context(|| format!("writing {}", cfg.out.display()))?;
+    } else if !pa_model::export::write_new_atomic(&cfg.out, text.as_bytes())
+        .with_context(|| format!("writing {}", cfg.out.display()))?
+    {
         bail!("{} exists; pass --force to replace it", cfg.out.display());
     }
-    pa_model::export::write_atomic(&cfg.out, text.as_bytes())
-        .with_context(|| format!("writing {}", cfg.out.display()))?;
     outln!("wrote {}", cfg.out.display());
     Ok(())
 }
