@@ -1,7 +1,10 @@
 //! Bounds-checked reading of glTF accessors (strided views, normalised integers, matrix column
 //! padding, sparse substitution). Every byte range is checked against its buffer view and
 //! buffer before it is read, so a hostile file cannot make us read out of range or allocate
-//! more than its own data (plus a fixed cap for view-less accessors).
+//! more than its own data (plus a fixed cap for view-less accessors). Values are decoded
+//! straight into the output type (`f32` or `u32`), with no wider intermediate; the loader
+//! checks the decoded sizes against its budgets before it reads anything (see the crate
+//! documentation).
 
 use gltf::accessor::{DataType, Dimensions};
 
@@ -102,18 +105,21 @@ fn read_component(bytes: &[u8], t: DataType, normalized: bool) -> f64 {
     }
 }
 
-/// Checked slice of a buffer view: returns (bytes of the view, stride).
-fn view_bytes<'b>(
+/// Checked slice of a buffer view.
+fn view_bytes<'b, B: AsRef<[u8]>>(
     acc_index: usize,
     view: &gltf::buffer::View<'_>,
-    buffers: &'b [Vec<u8>],
+    buffers: &'b [B],
 ) -> Result<&'b [u8], ErrorKind> {
-    let buffer = buffers.get(view.buffer().index()).ok_or_else(|| {
-        err(
-            acc_index,
-            format!("buffer view {} names a missing buffer", view.index()),
-        )
-    })?;
+    let buffer = buffers
+        .get(view.buffer().index())
+        .map(AsRef::as_ref)
+        .ok_or_else(|| {
+            err(
+                acc_index,
+                format!("buffer view {} names a missing buffer", view.index()),
+            )
+        })?;
     let start = view.offset();
     let end = start.checked_add(view.length()).ok_or_else(|| {
         err(
@@ -135,19 +141,36 @@ fn view_bytes<'b>(
     })
 }
 
-/// Reads `count` elements from `bytes` at `offset` with `stride`, appending components.
-#[allow(clippy::too_many_arguments)]
-fn read_elements(
-    acc_index: usize,
-    bytes: &[u8],
+/// The layout of the elements to read from a byte slice.
+#[derive(Clone, Copy)]
+struct Layout {
     offset: usize,
     stride: usize,
+    /// Elements the accessor declares (all must lie inside the view).
     count: usize,
     d: Dimensions,
     t: DataType,
     normalized: bool,
-    out: &mut Vec<f64>,
+}
+
+/// Checks that all `layout.count` elements lie inside `bytes`, then appends the components of
+/// the first `take` of them, converted by `conv`.
+fn read_elements<T>(
+    acc_index: usize,
+    bytes: &[u8],
+    layout: Layout,
+    take: usize,
+    conv: &impl Fn(f64) -> T,
+    out: &mut Vec<T>,
 ) -> Result<(), ErrorKind> {
+    let Layout {
+        offset,
+        stride,
+        count,
+        d,
+        t,
+        normalized,
+    } = layout;
     let (elem_size, col_stride) = element_layout(d, t);
     let (rows, cols) = shape(d);
     let cs = component_size(t);
@@ -169,31 +192,40 @@ fn read_elements(
             ),
         ));
     }
-    out.reserve(count * rows * cols);
-    for i in 0..count {
+    let take = take.min(count);
+    // `take * stride <= last <= bytes.len()`, so this cannot overflow.
+    out.reserve(take * rows * cols);
+    for i in 0..take {
         let base = offset + i * stride;
         for c in 0..cols {
             for r in 0..rows {
                 let at = base + c * col_stride + r * cs;
-                out.push(read_component(&bytes[at..at + cs], t, normalized));
+                out.push(conv(read_component(&bytes[at..at + cs], t, normalized)));
             }
         }
     }
     Ok(())
 }
 
-/// Reads an accessor as a flat list of f64 components (count x components), applying
-/// normalisation and sparse substitution.
-pub fn read_f64(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Vec<f64>, ErrorKind> {
+/// Reads the first `max_elements` elements of an accessor (all of them when it has fewer) as
+/// a flat list of components converted by `conv`, applying normalisation and sparse
+/// substitution. Every element the accessor declares is still range-checked.
+fn read_as<T: Copy + Default, B: AsRef<[u8]>>(
+    accessor: &gltf::Accessor<'_>,
+    buffers: &[B],
+    max_elements: usize,
+    conv: impl Fn(f64) -> T,
+) -> Result<Vec<T>, ErrorKind> {
     let index = accessor.index();
     let d = accessor.dimensions();
     let t = accessor.data_type();
     let n = component_count(d);
     let count = accessor.count();
+    let take = count.min(max_elements);
     let normalized = accessor.normalized();
     let (elem_size, _) = element_layout(d, t);
 
-    let mut out: Vec<f64> = Vec::new();
+    let mut out: Vec<T> = Vec::new();
     match accessor.view() {
         Some(view) => {
             let bytes = view_bytes(index, &view, buffers)?;
@@ -204,17 +236,15 @@ pub fn read_f64(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Ve
                     format!("byte stride {stride} is smaller than the element size {elem_size}"),
                 ));
             }
-            read_elements(
-                index,
-                bytes,
-                accessor.offset(),
+            let layout = Layout {
+                offset: accessor.offset(),
                 stride,
                 count,
                 d,
                 t,
                 normalized,
-                &mut out,
-            )?;
+            };
+            read_elements(index, bytes, layout, take, &conv, &mut out)?;
         }
         None => {
             if count > MAX_VIEWLESS_ELEMENTS {
@@ -226,7 +256,7 @@ pub fn read_f64(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Ve
                     ),
                 ));
             }
-            out = vec![0.0; count * n];
+            out = vec![T::default(); take * n];
         }
     }
 
@@ -245,45 +275,72 @@ pub fn read_f64(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Ve
             gltf::accessor::sparse::IndexType::U32 => DataType::U32,
         };
         let ibytes = view_bytes(index, &iv.view(), buffers)?;
-        let mut idx = Vec::new();
-        let isz = component_size(it);
-        read_elements(
-            index,
-            ibytes,
-            iv.offset(),
-            isz,
-            sc,
-            Dimensions::Scalar,
-            it,
-            false,
-            &mut idx,
-        )?;
+        let mut idx: Vec<u64> = Vec::new();
+        let ilayout = Layout {
+            offset: iv.offset(),
+            stride: component_size(it),
+            count: sc,
+            d: Dimensions::Scalar,
+            t: it,
+            normalized: false,
+        };
+        read_elements(index, ibytes, ilayout, sc, &|v| v as u64, &mut idx)?;
         let vv = sparse.values();
         let vbytes = view_bytes(index, &vv.view(), buffers)?;
         let mut vals = Vec::new();
-        read_elements(
-            index,
-            vbytes,
-            vv.offset(),
-            elem_size,
-            sc,
+        let vlayout = Layout {
+            offset: vv.offset(),
+            stride: elem_size,
+            count: sc,
             d,
             t,
             normalized,
-            &mut vals,
-        )?;
+        };
+        read_elements(index, vbytes, vlayout, sc, &conv, &mut vals)?;
         for (k, &i) in idx.iter().enumerate() {
-            let i = i as usize;
+            let Ok(i) = usize::try_from(i) else {
+                return Err(err(index, format!("sparse index {i} is too large")));
+            };
             if i >= count {
                 return Err(err(
                     index,
                     format!("sparse index {i} is past the accessor count {count}"),
                 ));
             }
-            out[i * n..(i + 1) * n].copy_from_slice(&vals[k * n..(k + 1) * n]);
+            if i < take {
+                out[i * n..(i + 1) * n].copy_from_slice(&vals[k * n..(k + 1) * n]);
+            }
         }
     }
     Ok(out)
+}
+
+/// Reads an accessor as a flat list of f64 components (count x components), applying
+/// normalisation and sparse substitution.
+pub fn read_f64<B: AsRef<[u8]>>(
+    accessor: &gltf::Accessor<'_>,
+    buffers: &[B],
+) -> Result<Vec<f64>, ErrorKind> {
+    read_as(accessor, buffers, usize::MAX, |v| v)
+}
+
+/// Reads an accessor as a flat list of f32 components (count x components), applying
+/// normalisation and sparse substitution.
+pub fn read_f32<B: AsRef<[u8]>>(
+    accessor: &gltf::Accessor<'_>,
+    buffers: &[B],
+) -> Result<Vec<f32>, ErrorKind> {
+    read_as(accessor, buffers, usize::MAX, |v| v as f32)
+}
+
+/// [`read_f32`] of at most the first `max_elements` elements (the rest are range-checked but
+/// not decoded).
+pub fn read_f32_prefix<B: AsRef<[u8]>>(
+    accessor: &gltf::Accessor<'_>,
+    buffers: &[B],
+    max_elements: usize,
+) -> Result<Vec<f32>, ErrorKind> {
+    read_as(accessor, buffers, max_elements, |v| v as f32)
 }
 
 /// Checks an accessor's element type.
@@ -307,17 +364,14 @@ pub fn expect_dims(
 }
 
 /// Reads a VEC3 float accessor.
-pub fn read_vec3(
+pub fn read_vec3<B: AsRef<[u8]>>(
     accessor: &gltf::Accessor<'_>,
-    buffers: &[Vec<u8>],
+    buffers: &[B],
     what: &str,
 ) -> Result<Vec<glam::Vec3>, ErrorKind> {
     expect_dims(accessor, &[Dimensions::Vec3], what)?;
-    let v = read_f64(accessor, buffers)?;
-    let out: Vec<glam::Vec3> = v
-        .chunks_exact(3)
-        .map(|c| glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-        .collect();
+    let v = read_f32(accessor, buffers)?;
+    let out: Vec<glam::Vec3> = v.chunks_exact(3).map(glam::Vec3::from_slice).collect();
     if let Some(bad) = out.iter().position(|p| !p.is_finite()) {
         return Err(err(
             accessor.index(),
@@ -328,7 +382,10 @@ pub fn read_vec3(
 }
 
 /// Reads a scalar accessor of unsigned integers (indices, joint indices) as u32.
-pub fn read_u32(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Vec<u32>, ErrorKind> {
+pub fn read_u32<B: AsRef<[u8]>>(
+    accessor: &gltf::Accessor<'_>,
+    buffers: &[B],
+) -> Result<Vec<u32>, ErrorKind> {
     match accessor.data_type() {
         DataType::U8 | DataType::U16 | DataType::U32 => {}
         other => {
@@ -338,8 +395,5 @@ pub fn read_u32(accessor: &gltf::Accessor<'_>, buffers: &[Vec<u8>]) -> Result<Ve
             ))
         }
     }
-    Ok(read_f64(accessor, buffers)?
-        .into_iter()
-        .map(|v| v as u32)
-        .collect())
+    read_as(accessor, buffers, usize::MAX, |v| v as u32)
 }

@@ -12,12 +12,53 @@
 //! - [`skin`] is the CPU reference of linear blend skinning `v' = sum_i w_i M_i v` plus morph
 //!   targets, in glTF world space (right-handed, +Y up, metres).
 //! - [`export`] writes a posed mesh as OBJ, STL or GLB.
+//!
+//! # Hostile files
+//!
+//! Loading never panics on a file's contents and never blocks or allocates without bound:
+//!
+//! - Only regular files are opened ([`pa_io`]): a FIFO, a device (`/dev/zero`), a socket or a
+//!   folder, as the model file or behind a buffer or image URI, is refused at once.
+//! - The GLB container is parsed by our own checked code, and every index in the JSON
+//!   (accessors, buffer views, buffers, meshes, materials, textures, images, samplers, skins,
+//!   nodes, scenes, animation samplers and channels) and every enumerated value the `gltf`
+//!   crate would otherwise unwrap is checked before that crate sees the document. A bad
+//!   reference gives [`ErrorKind::Reference`] naming where it is and what it names.
+//! - The node hierarchy is checked in linear time and walked without recursion, so a
+//!   100,000-node chain loads (and poses) quickly and cannot overflow the stack.
+//!
+//! # Budgets
+//!
+//! Before any accessor is decoded, the loader adds up what the document asks for and refuses
+//! it ([`ErrorKind::OverBudget`], naming the file, the budget and where it ran out) when a
+//! total exceeds its budget in [`Limits`]. The defaults:
+//!
+//! | Budget ([`Limits`] field)   | Default    | Counts                                                     |
+//! |-----------------------------|------------|------------------------------------------------------------|
+//! | `max_file_bytes`            | 2 GiB      | one file read from disk (model, `.bin`, image)             |
+//! | `max_input_bytes`           | 2 GiB      | all buffer data and encoded images together (files and data URIs; the GLB binary chunk is not copied) |
+//! | `max_vertex_bytes`          | 1 GiB      | decoded vertex attributes, triangle indices and inverse bind matrices, in bytes of [`Model`]'s types |
+//! | `max_morph_bytes`           | 1 GiB      | decoded morph target deltas plus every node's morph weights |
+//! | `max_animation_bytes`       | 512 MiB    | decoded key times and values of every channel, plus a fixed cost per channel |
+//! | `max_nodes`                 | 1,048,576  | nodes                                                      |
+//! | `max_instanced_vertices`    | 33,554,432 | vertices drawn: each mesh node counts its mesh's vertices (bounds posing and export) |
+//! | `max_image_side`            | 16,384 px  | width or height of one decoded image                       |
+//! | `max_image_bytes`           | 1 GiB      | all decoded RGBA8 images together                          |
+//!
+//! The decoded totals are exact sizes of what [`Model`] will hold, computed with overflow-checked
+//! (saturating) arithmetic from the declared counts, so an 800-byte file declaring 2^24 sparse
+//! vertices with 16 morph targets, or a file repeating a large animation thousands of times, is
+//! refused before anything is allocated. While an accessor is decoded, memory briefly reaches
+//! about twice that accessor's decoded size. An accessor without a buffer view may have at most
+//! [`accessor::MAX_VIEWLESS_ELEMENTS`] elements.
 
 pub mod accessor;
 pub mod anim;
+mod budget;
 pub mod export;
 mod load;
 pub mod skin;
+mod validate;
 
 use std::path::PathBuf;
 
@@ -40,6 +81,9 @@ pub struct ModelError {
 pub enum ErrorKind {
     #[error("cannot read file: {0}")]
     Io(#[from] std::io::Error),
+    /// The model file is a FIFO, a device, a socket or a folder (see [`pa_io::read_regular`]).
+    #[error("is {kind}, not a regular file (only regular files are read)")]
+    NotRegularFile { kind: &'static str },
     #[error("not a valid glTF 2.0 file: {0}")]
     Parse(String),
     #[error("{what} is {size} bytes, over the limit of {limit} bytes")]
@@ -87,10 +131,54 @@ pub enum ErrorKind {
     Animation { index: usize, message: String },
     #[error("node hierarchy: {0}")]
     Hierarchy(String),
+    /// An index in the JSON names an object that does not exist.
+    #[error("{at}: {field} names {kind} {index}, which does not exist ({})", counted(*count, kind))]
+    Reference {
+        /// Where the reference is ("mesh 0 primitive 1").
+        at: String,
+        /// The JSON property holding it ("attributes.POSITION").
+        field: String,
+        /// What it names ("accessor").
+        kind: &'static str,
+        index: usize,
+        /// How many of `kind` the file has.
+        count: usize,
+    },
+    /// A value in the JSON that is not allowed there (an unknown enumerated value, a missing
+    /// property the loader needs).
+    #[error("{at}: {message}")]
+    Invalid { at: String, message: String },
+    /// The document asks for more than a budget of [`Limits`] allows.
+    #[error(
+        "{what} needs {needed} {unit}, over the budget of {limit} {unit} (Limits::{budget}); \
+         the budget ran out at {at}"
+    )]
+    OverBudget {
+        /// What is counted ("decoded vertex data").
+        what: &'static str,
+        /// The [`Limits`] field.
+        budget: &'static str,
+        /// "bytes", "nodes", "vertices".
+        unit: &'static str,
+        /// The running total when the budget ran out.
+        needed: u64,
+        limit: u64,
+        /// The object that made it run out ("mesh 0 primitive 0 morph target 5").
+        at: String,
+    },
     #[error("no animation named {0:?} (see `propsalive inspect`)")]
     NoSuchAnimation(String),
     #[error("cannot export: {0}")]
     Export(String),
+}
+
+/// "there is 1 node", "there are 3 nodes".
+fn counted(count: usize, kind: &str) -> String {
+    if count == 1 {
+        format!("there is 1 {kind}")
+    } else {
+        format!("there are {count} {kind}s")
+    }
 }
 
 impl ModelError {

@@ -1,5 +1,12 @@
 //! Loading glTF 2.0 files into [`Model`], with every reference checked.
+//!
+//! The order matters for hostile files: the GLB container is split by our own checked code,
+//! the JSON is parsed without the `gltf` crate's validation, every index is checked
+//! ([`crate::validate`]), then the crate's own validation runs, then the budgets are added up
+//! ([`crate::budget`]), and only then are files read and accessors decoded.
 
+use std::borrow::Cow;
+use std::io::Read as _;
 use std::path::{Component, Path, PathBuf};
 
 use base64::Engine as _;
@@ -7,17 +14,35 @@ use glam::{Mat4, Quat, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
 
-use crate::accessor::{expect_dims, read_f64, read_u32, read_vec3};
+use crate::accessor::{expect_dims, read_f32, read_f32_prefix, read_u32, read_vec3};
 use crate::{
     Animation, Channel, ErrorKind, Image, Interpolation, LocalTransform, Material, Mesh, Model,
     ModelError, MorphTarget, Node, Primitive, Property, Sampler, Skin, Trs,
 };
 
-/// Resource limits for loading (bounded allocation against absurd or hostile files).
+/// Resource limits for loading (bounded allocation against absurd or hostile files). The
+/// crate documentation explains each budget; every one is checked before the memory it
+/// bounds is allocated.
 #[derive(Debug, Clone, Copy)]
 pub struct Limits {
     /// Largest model file, external buffer or external image read from disk.
     pub max_file_bytes: u64,
+    /// Largest total of buffer data and encoded images held or read (external files and
+    /// decoded data URIs; the GLB binary chunk is used in place and not counted).
+    pub max_input_bytes: u64,
+    /// Largest total of decoded vertex data: positions, normals, UVs, joints and weights,
+    /// triangle indices and inverse bind matrices, in bytes of [`Model`]'s types.
+    pub max_vertex_bytes: u64,
+    /// Largest total of decoded morph target deltas and node morph weights, in bytes.
+    pub max_morph_bytes: u64,
+    /// Largest total of decoded animation key times and values (plus a fixed cost per
+    /// channel), in bytes.
+    pub max_animation_bytes: u64,
+    /// Most nodes.
+    pub max_nodes: u64,
+    /// Most vertices drawn: each node with a mesh counts its mesh's vertices (this bounds
+    /// posing, export and rendering, which work per mesh node).
+    pub max_instanced_vertices: u64,
     /// Largest width or height of a decoded image.
     pub max_image_side: u32,
     /// Largest total allocation for decoded images.
@@ -28,6 +53,12 @@ impl Default for Limits {
     fn default() -> Self {
         Self {
             max_file_bytes: 2 << 30,
+            max_input_bytes: 2 << 30,
+            max_vertex_bytes: 1 << 30,
+            max_morph_bytes: 1 << 30,
+            max_animation_bytes: 512 << 20,
+            max_nodes: 1 << 20,
+            max_instanced_vertices: 1 << 25,
             max_image_side: 16_384,
             max_image_bytes: 1 << 30,
         }
@@ -45,26 +76,31 @@ pub struct LoadOptions {
 /// Weight sums further than this from 1 are reported (they are always renormalised).
 const WEIGHT_SUM_WARN: f32 = 1e-3;
 
+/// Validation errors listed in a message before "and N more".
+const MAX_LISTED_ERRORS: usize = 8;
+
 pub(crate) fn load(path: PathBuf, options: &LoadOptions) -> Result<Model, ModelError> {
-    let bytes = read_bounded(&path, options.limits.max_file_bytes)
-        .map_err(|kind| ModelError::new(&path, kind))?;
-    let base_dir = path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."));
+    let bytes = pa_io::read_regular(&path, options.limits.max_file_bytes, "a glTF file")
+        .map_err(|e| ModelError::new(&path, model_file_error(&path, e)))?;
+    let base_dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
     from_slice(&bytes, path, Some(&base_dir), options)
 }
 
-fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, ErrorKind> {
-    let meta = std::fs::metadata(path)?;
-    if meta.len() > limit {
-        return Err(ErrorKind::TooLarge {
+/// The error for the model file itself (its path is already in [`ModelError`]).
+fn model_file_error(path: &Path, e: pa_io::IoError) -> ErrorKind {
+    match e {
+        pa_io::IoError::NotRegular { kind, .. } => ErrorKind::NotRegularFile { kind },
+        pa_io::IoError::TooLarge { size, limit, .. } => ErrorKind::TooLarge {
             what: format!("file {}", path.display()),
-            size: meta.len(),
+            size,
             limit,
-        });
+        },
+        pa_io::IoError::Io { source, .. } => ErrorKind::Io(source),
+        other => ErrorKind::Io(other.into()),
     }
-    Ok(std::fs::read(path)?)
 }
 
 pub(crate) fn from_slice(
@@ -73,18 +109,25 @@ pub(crate) fn from_slice(
     base_dir: Option<&Path>,
     options: &LoadOptions,
 ) -> Result<Model, ModelError> {
-    let gltf = gltf::Gltf::from_slice(bytes)
-        .map_err(|e| ModelError::new(&path, ErrorKind::Parse(e.to_string())))?;
+    let fail = |kind: ErrorKind| ModelError::new(&path, kind);
+    let (json, blob) = split_container(bytes).map_err(|m| fail(ErrorKind::Parse(m)))?;
+    let root: gltf::json::Root = gltf::json::deserialize::from_slice(json)
+        .map_err(|e| fail(ErrorKind::Parse(e.to_string())))?;
+    crate::validate::check_document(&root).map_err(fail)?;
+    let doc = gltf::Document::from_json(root)
+        .map_err(|e| fail(ErrorKind::Parse(gltf_error_message(&e))))?;
+    crate::budget::check(&doc, &options.limits).map_err(fail)?;
     let mut loader = Loader {
-        doc: &gltf.document,
+        doc: &doc,
         options,
         base_dir,
         buffers: Vec::new(),
+        input_bytes: 0,
         warnings: Vec::new(),
     };
-    let result = loader.run(gltf.blob.as_deref());
-    let (nodes, roots, meshes, skins, materials, images, animations) =
-        result.map_err(|kind| ModelError::new(&path, kind))?;
+    let result = loader.run(blob);
+    let (nodes, roots, meshes, skins, materials, images, animations) = result.map_err(fail)?;
+    let warnings = loader.warnings;
     Ok(Model {
         path,
         nodes,
@@ -94,8 +137,83 @@ pub(crate) fn from_slice(
         materials,
         images,
         animations,
-        warnings: loader.warnings,
+        warnings,
     })
+}
+
+/// The `gltf` crate's error, with a long list of validation errors cut short.
+fn gltf_error_message(e: &gltf::Error) -> String {
+    match e {
+        gltf::Error::Validation(errors) => {
+            let mut s = String::from("invalid glTF:");
+            for (path, error) in errors.iter().take(MAX_LISTED_ERRORS) {
+                s.push_str(&format!(" {path}: {error};"));
+            }
+            if errors.len() > MAX_LISTED_ERRORS {
+                s.push_str(&format!(" and {} more", errors.len() - MAX_LISTED_ERRORS));
+            }
+            s
+        }
+        other => other.to_string(),
+    }
+}
+
+const GLB_JSON: u32 = 0x4E4F_534A;
+const GLB_BIN: u32 = 0x004E_4942;
+
+fn le_u32(bytes: &[u8], at: usize) -> Option<u32> {
+    let b = bytes.get(at..at.checked_add(4)?)?;
+    Some(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+}
+
+/// Splits a GLB container into its JSON and binary chunks (a `.gltf` is all JSON). Every
+/// length is checked against the bytes present; chunks of unknown types are skipped, as the
+/// spec asks.
+fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok((bytes, None));
+    }
+    let header = |at| le_u32(bytes, at).ok_or("GLB header is truncated (12 bytes needed)");
+    let version = header(4)?;
+    if version != 2 {
+        return Err(format!("GLB version {version} is not 2"));
+    }
+    let length = header(8)? as usize;
+    if length < 12 || length > bytes.len() {
+        return Err(format!(
+            "GLB header declares {length} bytes but the file has {} (at least 12 needed)",
+            bytes.len()
+        ));
+    }
+    let body = &bytes[12..length];
+    let mut at = 0usize;
+    let mut json = None;
+    let mut bin = None;
+    let mut chunk = 0usize;
+    while body.len() - at >= 8 {
+        let (Some(len), Some(ty)) = (le_u32(body, at), le_u32(body, at + 4)) else {
+            break;
+        };
+        let len = len as usize;
+        let start = at + 8;
+        let Some(data) = start.checked_add(len).and_then(|end| body.get(start..end)) else {
+            return Err(format!(
+                "GLB chunk {chunk} declares {len} bytes but only {} remain: truncated or \
+                 corrupt file",
+                body.len() - start
+            ));
+        };
+        match (chunk, ty) {
+            (0, GLB_JSON) => json = Some(data),
+            (0, _) => return Err(format!("GLB chunk 0 has type {ty:#010x}, not JSON")),
+            (_, GLB_BIN) if bin.is_none() => bin = Some(data),
+            _ => {}
+        }
+        at = start + len;
+        chunk += 1;
+    }
+    let json = json.ok_or("GLB file has no JSON chunk")?;
+    Ok((json, bin))
 }
 
 type Parts = (
@@ -112,12 +230,24 @@ struct Loader<'a> {
     doc: &'a gltf::Document,
     options: &'a LoadOptions,
     base_dir: Option<&'a Path>,
-    buffers: Vec<Vec<u8>>,
+    /// Buffer data: the GLB binary chunk in place, or read from a file or data URI.
+    buffers: Vec<Cow<'a, [u8]>>,
+    /// Bytes read into memory for buffers and images so far ([`Limits::max_input_bytes`]).
+    input_bytes: u64,
     warnings: Vec<String>,
 }
 
-impl Loader<'_> {
-    fn run(&mut self, blob: Option<&[u8]>) -> Result<Parts, ErrorKind> {
+/// How much of a URI's data to read.
+#[derive(Clone, Copy)]
+enum Want {
+    /// At most this many bytes (a buffer: its declared length; the rest of a file is unread).
+    Prefix(u64),
+    /// All of it (an image), refusing more than the file limit.
+    Whole,
+}
+
+impl<'a> Loader<'a> {
+    fn run(&mut self, blob: Option<&'a [u8]>) -> Result<Parts, ErrorKind> {
         if let Some(ext) = self.doc.extensions_required().next() {
             return Err(ErrorKind::Parse(format!(
                 "requires extension {ext:?}, which Props Alive does not support"
@@ -128,9 +258,19 @@ impl Loader<'_> {
         let materials = self.load_materials(&images);
         let meshes = self.load_meshes()?;
         let skins = self.load_skins()?;
-        let mut nodes = self.load_nodes()?;
+        let mesh_targets: Vec<usize> = meshes
+            .iter()
+            .map(|m| {
+                m.primitives
+                    .iter()
+                    .map(|p| p.morph_targets.len())
+                    .max()
+                    .unwrap_or(0)
+            })
+            .collect();
+        let mut nodes = self.load_nodes(&mesh_targets)?;
         check_skinned_nodes(&nodes, &meshes, &skins)?;
-        let animations = self.load_animations(&mut nodes, &meshes)?;
+        let animations = self.load_animations(&mut nodes, &mesh_targets)?;
         let roots = self.roots(&nodes);
         Ok((nodes, roots, meshes, skins, materials, images, animations))
     }
@@ -140,61 +280,117 @@ impl Loader<'_> {
         self.warnings.push(message);
     }
 
-    fn load_buffers(&mut self, blob: Option<&[u8]>) -> Result<(), ErrorKind> {
+    /// Counts `bytes` more against [`Limits::max_input_bytes`].
+    fn charge_input(&mut self, bytes: u64, at: impl FnOnce() -> String) -> Result<(), ErrorKind> {
+        self.input_bytes = self.input_bytes.saturating_add(bytes);
+        let limit = self.options.limits.max_input_bytes;
+        if self.input_bytes > limit {
+            return Err(ErrorKind::OverBudget {
+                what: "buffer and image data read",
+                budget: "max_input_bytes",
+                unit: "bytes",
+                needed: self.input_bytes,
+                limit,
+                at: at(),
+            });
+        }
+        Ok(())
+    }
+
+    fn load_buffers(&mut self, blob: Option<&'a [u8]>) -> Result<(), ErrorKind> {
         for buffer in self.doc.buffers() {
             let index = buffer.index();
             let declared = buffer.length();
-            let data = match buffer.source() {
-                gltf::buffer::Source::Bin => blob
-                    .ok_or_else(|| ErrorKind::Buffer {
+            let truncated = |present: usize| ErrorKind::Buffer {
+                index,
+                message: format!(
+                    "declares {declared} bytes but only {present} are present: truncated or \
+                     corrupt buffer"
+                ),
+            };
+            let data: Cow<'a, [u8]> = match buffer.source() {
+                gltf::buffer::Source::Bin => {
+                    let blob = blob.ok_or_else(|| ErrorKind::Buffer {
                         index,
                         message: "refers to the GLB binary chunk, which is missing".into(),
-                    })?
-                    .to_vec(),
-                gltf::buffer::Source::Uri(uri) => self
-                    .read_uri(uri)
-                    .map_err(|message| ErrorKind::Buffer { index, message })?,
+                    })?;
+                    Cow::Borrowed(blob.get(..declared).ok_or_else(|| truncated(blob.len()))?)
+                }
+                gltf::buffer::Source::Uri(uri) => {
+                    let mut data = self.read_uri(uri, Want::Prefix(declared as u64), &|m| {
+                        ErrorKind::Buffer { index, message: m }
+                    })?;
+                    if data.len() < declared {
+                        return Err(truncated(data.len()));
+                    }
+                    data.truncate(declared);
+                    Cow::Owned(data)
+                }
             };
-            if data.len() < declared {
-                return Err(ErrorKind::Buffer {
-                    index,
-                    message: format!(
-                        "declares {declared} bytes but only {} are present: truncated or \
-                         corrupt buffer",
-                        data.len()
-                    ),
-                });
-            }
-            let mut data = data;
-            data.truncate(declared);
             self.buffers.push(data);
         }
         Ok(())
     }
 
-    /// Reads a data URI or a file relative to the model's folder. Errors are messages that
-    /// name the URI.
-    fn read_uri(&self, uri: &str) -> Result<Vec<u8>, String> {
+    /// Reads a data URI or a regular file relative to the model's folder. `wrap` turns a
+    /// message naming the URI into the error for the object that refers to it.
+    fn read_uri(
+        &mut self,
+        uri: &str,
+        want: Want,
+        wrap: &dyn Fn(String) -> ErrorKind,
+    ) -> Result<Vec<u8>, ErrorKind> {
+        let limit = self.options.limits.max_file_bytes;
         if let Some(rest) = uri.strip_prefix("data:") {
             let (header, payload) = rest
                 .split_once(',')
-                .ok_or_else(|| format!("data URI {:?} has no ',' separator", short(uri)))?;
+                .ok_or_else(|| wrap(format!("data URI {:?} has no ',' separator", short(uri))))?;
             if !header.ends_with(";base64") {
-                return Err(format!("data URI {:?} is not base64-encoded", short(uri)));
+                return Err(wrap(format!(
+                    "data URI {:?} is not base64-encoded",
+                    short(uri)
+                )));
             }
-            let limit = self.options.limits.max_file_bytes;
-            if payload.len() as u64 / 4 * 3 > limit {
-                return Err(format!("data URI decodes to more than {limit} bytes"));
+            let decoded_size = payload.len() as u64 / 4 * 3;
+            if decoded_size > limit {
+                return Err(wrap(format!("data URI decodes to more than {limit} bytes")));
             }
+            self.charge_input(decoded_size, || format!("data URI {:?}", short(uri)))?;
             return base64::engine::general_purpose::STANDARD
                 .decode(payload.trim())
-                .map_err(|e| format!("data URI {:?} is not valid base64: {e}", short(uri)));
+                .map_err(|e| {
+                    wrap(format!(
+                        "data URI {:?} is not valid base64: {e}",
+                        short(uri)
+                    ))
+                });
         }
-        let path = self.resolve_relative(uri)?;
-        read_bounded(&path, self.options.limits.max_file_bytes)
-            .map_err(|e| format!("cannot read {uri:?} ({}): {e}", path.display()))
+        let path = self.resolve_relative(uri).map_err(wrap)?;
+        let cannot = |e: pa_io::IoError| wrap(format!("cannot read {uri:?}: {e}"));
+        let file = pa_io::open_regular(&path).map_err(cannot)?;
+        let size = file
+            .metadata()
+            .map_err(|e| wrap(format!("cannot read {uri:?} ({}): {e}", path.display())))?
+            .len();
+        if size > limit {
+            return Err(cannot(pa_io::IoError::TooLarge {
+                path,
+                size,
+                limit,
+                what: "a file a glTF model refers to",
+            }));
+        }
+        let to_read = match want {
+            Want::Prefix(n) => size.min(n),
+            Want::Whole => size,
+        };
+        self.charge_input(to_read, || format!("file {uri:?}"))?;
+        let mut bytes = Vec::with_capacity(to_read as usize);
+        file.take(to_read)
+            .read_to_end(&mut bytes)
+            .map_err(|e| wrap(format!("cannot read {uri:?} ({}): {e}", path.display())))?;
+        Ok(bytes)
     }
-
     /// Resolves a relative URI inside the model's folder, refusing anything that escapes it.
     fn resolve_relative(&self, uri: &str) -> Result<PathBuf, String> {
         let escapes = || ErrorKind::UriEscapes { uri: uri.into() }.to_string();
@@ -260,7 +456,7 @@ impl Loader<'_> {
                 continue;
             }
             let image_err = |message: String| ErrorKind::Image { index, message };
-            let encoded: Vec<u8> = match image.source() {
+            let encoded: Cow<'_, [u8]> = match image.source() {
                 gltf::image::Source::View { view, .. } => {
                     let buffer = self
                         .buffers
@@ -268,20 +464,19 @@ impl Loader<'_> {
                         .ok_or_else(|| image_err("buffer view names a missing buffer".into()))?;
                     let start = view.offset();
                     let end = start.saturating_add(view.length());
-                    buffer
-                        .get(start..end)
-                        .ok_or_else(|| {
-                            image_err(format!(
-                                "buffer view {} is outside its buffer: truncated or corrupt",
-                                view.index()
-                            ))
-                        })?
-                        .to_vec()
+                    Cow::Borrowed(buffer.get(start..end).ok_or_else(|| {
+                        image_err(format!(
+                            "buffer view {} is outside its buffer: truncated or corrupt",
+                            view.index()
+                        ))
+                    })?)
                 }
-                gltf::image::Source::Uri { uri, .. } => self.read_uri(uri).map_err(image_err)?,
+                gltf::image::Source::Uri { uri, .. } => {
+                    Cow::Owned(self.read_uri(uri, Want::Whole, &image_err)?)
+                }
             };
             let lim = &self.options.limits;
-            let reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
+            let reader = image::ImageReader::new(std::io::Cursor::new(&*encoded))
                 .with_guessed_format()
                 .map_err(|e| image_err(format!("cannot read: {e}")))?;
             let (w, h) = reader
@@ -301,7 +496,7 @@ impl Loader<'_> {
                     limit: lim.max_image_bytes,
                 });
             }
-            let mut reader = image::ImageReader::new(std::io::Cursor::new(&encoded))
+            let mut reader = image::ImageReader::new(std::io::Cursor::new(&*encoded))
                 .with_guessed_format()
                 .map_err(|e| image_err(format!("cannot read: {e}")))?;
             let mut limits = image::Limits::default();
@@ -396,9 +591,9 @@ impl Loader<'_> {
             Some(acc) => {
                 check_count(&acc, "TEXCOORD_0")?;
                 expect_dims(&acc, &[Dimensions::Vec2], "TEXCOORD_0")?;
-                read_f64(&acc, &self.buffers)?
+                read_f32(&acc, &self.buffers)?
                     .chunks_exact(2)
-                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .map(|c| [c[0], c[1]])
                     .collect()
             }
             None => Vec::new(),
@@ -527,7 +722,7 @@ impl Loader<'_> {
                 });
             }
             let jv = read_u32(&j, &self.buffers)?;
-            let wv = read_f64(&w, &self.buffers)?;
+            let wv = read_f32(&w, &self.buffers)?;
             if set == 0 {
                 joints = vec![[0u16; 8]; n];
                 weights = vec![[0f32; 8]; n];
@@ -536,7 +731,7 @@ impl Loader<'_> {
             for v in 0..n {
                 for k in 0..4 {
                     joints[v][base + k] = jv[v * 4 + k] as u16;
-                    weights[v][base + k] = wv[v * 4 + k] as f32;
+                    weights[v][base + k] = wv[v * 4 + k];
                 }
             }
         }
@@ -598,7 +793,6 @@ impl Loader<'_> {
             let inverse_bind_matrices = match skin.inverse_bind_matrices() {
                 Some(acc) => {
                     expect_dims(&acc, &[Dimensions::Mat4], "inverseBindMatrices")?;
-                    let v = read_f64(&acc, &self.buffers)?;
                     if acc.count() < joints.len() {
                         return Err(ErrorKind::Skin {
                             index,
@@ -609,17 +803,9 @@ impl Loader<'_> {
                             ),
                         });
                     }
-                    let mats: Vec<Mat4> = v
-                        .chunks_exact(16)
-                        .take(joints.len())
-                        .map(|c| {
-                            let mut a = [0f32; 16];
-                            for (d, s) in a.iter_mut().zip(c) {
-                                *d = *s as f32;
-                            }
-                            Mat4::from_cols_array(&a)
-                        })
-                        .collect();
+                    // Only the matrices of the joints are decoded (a budget counts them).
+                    let v = read_f32_prefix(&acc, &self.buffers, joints.len())?;
+                    let mats: Vec<Mat4> = v.chunks_exact(16).map(Mat4::from_cols_slice).collect();
                     if mats.iter().any(|m| !m.is_finite()) {
                         return Err(ErrorKind::Skin {
                             index,
@@ -639,8 +825,10 @@ impl Loader<'_> {
         Ok(skins)
     }
 
-    fn load_nodes(&mut self) -> Result<Vec<Node>, ErrorKind> {
-        let count = self.doc.nodes().count();
+    /// Nodes with their parents, checked to form a forest. `mesh_targets` is the number of
+    /// morph targets of each mesh. Linear in the number of nodes and children.
+    fn load_nodes(&mut self, mesh_targets: &[usize]) -> Result<Vec<Node>, ErrorKind> {
+        let count = self.doc.nodes().len();
         let mut nodes = Vec::with_capacity(count);
         for node in self.doc.nodes() {
             let local = match node.transform() {
@@ -675,12 +863,14 @@ impl Loader<'_> {
             };
             let target_count = node
                 .mesh()
-                .and_then(|m| m.primitives().map(|p| p.morph_targets().count()).max())
+                .and_then(|m| mesh_targets.get(m.index()))
+                .copied()
                 .unwrap_or(0);
-            let mut morph_weights = node
+            // Only the weights that are used are copied (the budget counts those).
+            let mut morph_weights: Vec<f32> = node
                 .weights()
                 .or_else(|| node.mesh().and_then(|m| m.weights()))
-                .map(<[f32]>::to_vec)
+                .map(|w| w.iter().take(target_count).copied().collect())
                 .unwrap_or_default();
             morph_weights.resize(target_count, 0.0);
             nodes.push(Node {
@@ -694,7 +884,8 @@ impl Loader<'_> {
             });
         }
         for i in 0..count {
-            for c in nodes[i].children.clone() {
+            for k in 0..nodes[i].children.len() {
+                let c = nodes[i].children[k];
                 if c == i {
                     return Err(ErrorKind::Hierarchy(format!("node {i} is its own child")));
                 }
@@ -706,19 +897,9 @@ impl Loader<'_> {
                 nodes[c].parent = Some(i);
             }
         }
-        // With at most one parent each, a cycle shows as a walk longer than the node count.
-        for start in 0..count {
-            let mut at = start;
-            let mut steps = 0;
-            while let Some(p) = nodes[at].parent {
-                at = p;
-                steps += 1;
-                if steps > count {
-                    return Err(ErrorKind::Hierarchy(format!(
-                        "node {start} is part of a cycle"
-                    )));
-                }
-            }
+        let parents: Vec<Option<usize>> = nodes.iter().map(|n| n.parent).collect();
+        if let Some(n) = find_cycle(&parents, &mut 0) {
+            return Err(ErrorKind::Hierarchy(format!("node {n} is part of a cycle")));
         }
         Ok(nodes)
     }
@@ -726,7 +907,7 @@ impl Loader<'_> {
     fn load_animations(
         &mut self,
         nodes: &mut [Node],
-        meshes: &[Mesh],
+        mesh_targets: &[usize],
     ) -> Result<Vec<Animation>, ErrorKind> {
         let mut animations = Vec::new();
         for anim in self.doc.animations() {
@@ -750,10 +931,7 @@ impl Loader<'_> {
                 };
                 let input = sampler.input();
                 expect_dims(&input, &[Dimensions::Scalar], "animation input")?;
-                let times_s: Vec<f32> = read_f64(&input, &self.buffers)?
-                    .into_iter()
-                    .map(|t| t as f32)
-                    .collect();
+                let times_s: Vec<f32> = read_f32(&input, &self.buffers)?;
                 if times_s.is_empty() {
                     return Err(aerr(format!("channel {ci} has no keyframes")));
                 }
@@ -764,10 +942,7 @@ impl Loader<'_> {
                     return Err(aerr(format!("channel {ci}: key times are not increasing")));
                 }
                 let output = sampler.output();
-                let values: Vec<f32> = read_f64(&output, &self.buffers)?
-                    .into_iter()
-                    .map(|v| v as f32)
-                    .collect();
+                let values: Vec<f32> = read_f32(&output, &self.buffers)?;
                 if values.iter().any(|v| !v.is_finite()) {
                     return Err(aerr(format!("channel {ci} has a non-finite value")));
                 }
@@ -783,8 +958,8 @@ impl Loader<'_> {
                     Property::MorphWeights => {
                         let targets = nodes[node]
                             .mesh
-                            .and_then(|m| meshes.get(m))
-                            .and_then(|m| m.primitives.iter().map(|p| p.morph_targets.len()).max())
+                            .and_then(|m| mesh_targets.get(m))
+                            .copied()
                             .unwrap_or(0);
                         if targets == 0 {
                             return Err(aerr(format!(
@@ -795,7 +970,7 @@ impl Loader<'_> {
                         targets
                     }
                 };
-                let expected = keys * groups * components;
+                let expected = keys.saturating_mul(groups).saturating_mul(components);
                 if values.len() != expected {
                     return Err(aerr(format!(
                         "channel {ci} has {} output values, expected {expected} ({keys} keys x \
@@ -843,28 +1018,120 @@ impl Loader<'_> {
         Ok(animations)
     }
 
-    fn roots(&self, nodes: &[Node]) -> Vec<usize> {
+    /// The root nodes of the default scene (the first scene when none is named; every
+    /// parentless node when there is no scene). A scene's entries that are not roots (the
+    /// spec requires roots) or that repeat one are dropped with one warning, so that nothing
+    /// walking from the roots visits a node twice.
+    fn roots(&mut self, nodes: &[Node]) -> Vec<usize> {
         let scene = self
             .doc
             .default_scene()
             .or_else(|| self.doc.scenes().next());
-        match scene {
-            Some(s) => s.nodes().map(|n| n.index()).collect(),
-            None => (0..nodes.len())
+        let Some(scene) = scene else {
+            return (0..nodes.len())
                 .filter(|&i| nodes[i].parent.is_none())
-                .collect(),
+                .collect();
+        };
+        let mut listed = vec![false; nodes.len()];
+        let mut roots = Vec::new();
+        let mut dropped = 0usize;
+        for n in scene.nodes().map(|n| n.index()) {
+            match listed.get_mut(n) {
+                Some(seen) if !*seen && nodes[n].parent.is_none() => {
+                    *seen = true;
+                    roots.push(n);
+                }
+                _ => dropped += 1,
+            }
         }
+        if dropped > 0 {
+            self.warn(format!(
+                "scene {}: {dropped} entries of its node list are repeated or not root nodes; \
+                 they were ignored",
+                scene.index()
+            ));
+        }
+        roots
     }
 }
 
-/// Checks every skinned node's primitives against its skin.
+/// Finds a node on a cycle of the parent links (each node has at most one parent), or
+/// `None`. Linear: every node is entered once and finished once (`steps` counts the loop
+/// iterations, for tests).
+fn find_cycle(parents: &[Option<usize>], steps: &mut usize) -> Option<usize> {
+    const NEW: u8 = 0;
+    const ON_WALK: u8 = 1;
+    const DONE: u8 = 2;
+    let mut state = vec![NEW; parents.len()];
+    for start in 0..parents.len() {
+        if state[start] != NEW {
+            continue;
+        }
+        // Walk up until a root or a node already known to reach one.
+        let mut at = start;
+        loop {
+            *steps += 1;
+            match state[at] {
+                ON_WALK => return Some(at),
+                DONE => break,
+                _ => {}
+            }
+            state[at] = ON_WALK;
+            match parents[at] {
+                Some(p) => at = p,
+                None => break,
+            }
+        }
+        // Everything on this walk reaches a root.
+        let mut at = start;
+        while state[at] == ON_WALK {
+            *steps += 1;
+            state[at] = DONE;
+            match parents[at] {
+                Some(p) => at = p,
+                None => break,
+            }
+        }
+    }
+    None
+}
+
+/// Checks every skinned node's primitives against its skin. Linear: the largest joint each
+/// primitive uses is found once, and a node's primitives are scanned vertex by vertex only to
+/// report the first bad vertex.
 fn check_skinned_nodes(nodes: &[Node], meshes: &[Mesh], skins: &[Skin]) -> Result<(), ErrorKind> {
+    // Per mesh, per primitive: the largest joint index with a non-zero weight.
+    let max_joint: Vec<Vec<Option<u16>>> = meshes
+        .iter()
+        .map(|m| {
+            m.primitives
+                .iter()
+                .map(|p| {
+                    p.joints
+                        .iter()
+                        .zip(&p.weights)
+                        .flat_map(|(j, w)| (0..8).filter(|&k| w[k] > 0.0).map(move |k| j[k]))
+                        .max()
+                })
+                .collect()
+        })
+        .collect();
     for (ni, node) in nodes.iter().enumerate() {
         let (Some(mi), Some(si)) = (node.mesh, node.skin) else {
             continue;
         };
-        let joint_count = skins[si].joints.len();
-        for (pi, prim) in meshes[mi].primitives.iter().enumerate() {
+        let (Some(mesh), Some(skin)) = (meshes.get(mi), skins.get(si)) else {
+            continue;
+        };
+        let joint_count = skin.joints.len();
+        for (pi, prim) in mesh.primitives.iter().enumerate() {
+            let fits = match max_joint[mi][pi] {
+                Some(j) => (j as usize) < joint_count,
+                None => true,
+            };
+            if fits {
+                continue;
+            }
             for (v, (j, w)) in prim.joints.iter().zip(&prim.weights).enumerate() {
                 for k in 0..8 {
                     if w[k] > 0.0 && j[k] as usize >= joint_count {
@@ -940,4 +1207,57 @@ fn percent_decode(s: &str) -> Option<String> {
         }
     }
     String::from_utf8(out).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cycle_check_is_linear_on_a_deep_chain() {
+        // Node i's parent is i - 1: visiting from every node used to walk to the root each
+        // time (n^2 / 2 steps); now each node is entered and finished once.
+        let n: usize = 100_000;
+        let parents: Vec<Option<usize>> = (0..n).map(|i| i.checked_sub(1)).collect();
+        let mut steps = 0;
+        assert_eq!(find_cycle(&parents, &mut steps), None);
+        assert!(steps <= 3 * n, "{steps} steps for {n} nodes");
+        // Children listed before their parents (the chain reversed) too.
+        let parents: Vec<Option<usize>> = (0..n).map(|i| (i + 1 < n).then_some(i + 1)).collect();
+        let mut steps = 0;
+        assert_eq!(find_cycle(&parents, &mut steps), None);
+        assert!(steps <= 3 * n, "{steps} steps for {n} nodes");
+    }
+
+    #[test]
+    fn the_cycle_check_finds_cycles_anywhere() {
+        // 0 <- 1 <- 2 <- 0 (a cycle), 3 a root, 4 <- 3.
+        let parents = [Some(2), Some(0), Some(1), None, Some(3)];
+        let found = find_cycle(&parents, &mut 0).expect("a cycle");
+        assert!(found < 3, "{found}");
+        // A tail leading into a cycle: 5 -> 6 -> 7 -> 6.
+        let parents = [None, Some(0), None, None, None, Some(6), Some(7), Some(6)];
+        let found = find_cycle(&parents, &mut 0).expect("a cycle");
+        assert!(found == 6 || found == 7, "{found}");
+        assert_eq!(find_cycle(&[None, Some(0), Some(0), Some(2)], &mut 0), None);
+    }
+
+    #[test]
+    fn glb_container_lengths_are_checked() {
+        assert!(split_container(b"glTF").is_err());
+        let mut glb = b"glTF".to_vec();
+        glb.extend(2u32.to_le_bytes());
+        glb.extend(20u32.to_le_bytes());
+        glb.extend(0u32.to_le_bytes()); // empty JSON chunk
+        glb.extend(GLB_JSON.to_le_bytes());
+        let (json, bin) = split_container(&glb).expect("valid container");
+        assert!(json.is_empty() && bin.is_none());
+        // A chunk length that wraps around past the end.
+        glb[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = split_container(&glb).expect_err("chunk past the end");
+        assert!(e.contains("chunk 0"), "{e}");
+        // Version and header length.
+        glb[4..8].copy_from_slice(&1u32.to_le_bytes());
+        assert!(split_container(&glb).expect_err("v1").contains("version 1"));
+    }
 }

@@ -18,7 +18,26 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// A human-readable description of a model.
+/// Tree levels indented by two spaces each; deeper nodes print their depth as a number
+/// instead, so every line has a bounded length and the output is linear in the model.
+const MAX_INDENT_DEPTH: usize = 16;
+/// Joint names listed per skin before "... and N more".
+const MAX_LISTED_JOINTS: usize = 32;
+/// Characters of a name printed (names are the file's text, of any length).
+const MAX_NAME_CHARS: usize = 64;
+
+/// A name from the file, cut to [`MAX_NAME_CHARS`] characters.
+fn name(n: Option<&str>) -> String {
+    let n = n.unwrap_or("-");
+    match n.char_indices().nth(MAX_NAME_CHARS) {
+        Some((cut, _)) => format!("{}...", &n[..cut]),
+        None => n.to_string(),
+    }
+}
+
+/// A human-readable description of a model. Its size is linear in the model's: every node is
+/// printed at most once (however the scene lists it), with at most [`MAX_INDENT_DEPTH`]
+/// levels of indentation, and names and joint lists are cut short.
 pub fn describe(model: &Model) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "model      {}", model.path.display());
@@ -33,23 +52,38 @@ pub fn describe(model: &Model) -> String {
         model.triangle_count()
     );
     let _ = writeln!(s, "\nnodes");
+    // Per mesh (computed once, not per node): primitives, vertices, triangles.
+    let mesh_stats: Vec<(usize, usize, usize)> = model
+        .meshes
+        .iter()
+        .map(|m| {
+            let v = m.primitives.iter().map(|p| p.positions.len()).sum();
+            let t = m.primitives.iter().map(|p| p.triangle_count()).sum();
+            (m.primitives.len(), v, t)
+        })
+        .collect();
+    let mut printed = vec![false; model.nodes.len()];
     let mut stack: Vec<(usize, usize)> = model.roots.iter().rev().map(|&r| (r, 0)).collect();
     while let Some((i, depth)) = stack.pop() {
-        let n = &model.nodes[i];
-        let mut line = format!(
-            "  {}[{i}] {}",
-            "  ".repeat(depth),
-            n.name.as_deref().unwrap_or("-")
-        );
+        let (Some(n), Some(seen)) = (model.nodes.get(i), printed.get_mut(i)) else {
+            continue;
+        };
+        if std::mem::replace(seen, true) {
+            continue;
+        }
+        let mut line = String::from("  ");
+        line.push_str(&"  ".repeat(depth.min(MAX_INDENT_DEPTH)));
+        if depth > MAX_INDENT_DEPTH {
+            let _ = write!(line, "(depth {depth}) ");
+        }
+        let _ = write!(line, "[{i}] {}", name(n.name.as_deref()));
         if let Some(m) = n.mesh {
-            let prims = &model.meshes[m].primitives;
-            let v: usize = prims.iter().map(|p| p.positions.len()).sum();
-            let t: usize = prims.iter().map(|p| p.triangle_count()).sum();
-            let _ = write!(
-                line,
-                "  mesh {m} ({} primitives, {v} vertices, {t} triangles)",
-                prims.len()
-            );
+            if let Some((prims, v, t)) = mesh_stats.get(m) {
+                let _ = write!(
+                    line,
+                    "  mesh {m} ({prims} primitives, {v} vertices, {t} triangles)"
+                );
+            }
         }
         if let Some(sk) = n.skin {
             let _ = write!(line, "  skin {sk}");
@@ -65,20 +99,27 @@ pub fn describe(model: &Model) -> String {
     if !model.skins.is_empty() {
         let _ = writeln!(s, "\nskins");
         for (i, sk) in model.skins.iter().enumerate() {
-            let names: Vec<String> = sk
+            let mut names: Vec<String> = sk
                 .joints
                 .iter()
-                .map(|&j| {
-                    model.nodes[j]
-                        .name
-                        .clone()
-                        .unwrap_or_else(|| format!("[{j}]"))
-                })
+                .take(MAX_LISTED_JOINTS)
+                .map(
+                    |&j| match model.nodes.get(j).and_then(|n| n.name.as_deref()) {
+                        Some(n) => name(Some(n)),
+                        None => format!("[{j}]"),
+                    },
+                )
                 .collect();
+            if sk.joints.len() > MAX_LISTED_JOINTS {
+                names.push(format!(
+                    "... and {} more",
+                    sk.joints.len() - MAX_LISTED_JOINTS
+                ));
+            }
             let _ = writeln!(
                 s,
                 "  [{i}] {}  {} joints: {}",
-                sk.name.as_deref().unwrap_or("-"),
+                name(sk.name.as_deref()),
                 sk.joints.len(),
                 names.join(", ")
             );
@@ -92,7 +133,7 @@ pub fn describe(model: &Model) -> String {
         let _ = writeln!(
             s,
             "  [{i}] {:<24} {:>8.3} s  {} channels",
-            a.name.as_deref().unwrap_or("-"),
+            name(a.name.as_deref()),
             a.duration_s,
             a.channels.len()
         );
@@ -103,7 +144,7 @@ pub fn describe(model: &Model) -> String {
             let _ = writeln!(
                 s,
                 "  [{i}] {:<24} {}x{}",
-                im.name.as_deref().unwrap_or("-"),
+                name(im.name.as_deref()),
                 im.width,
                 im.height
             );
