@@ -81,8 +81,24 @@ impl Board {
                 "invalid grid {rows}x{cols}, tag {tag_size_m} m, gap {gap_m} m"
             )));
         }
+        // Every id must be a code of the family, computed without overflow (a huge board or
+        // first id is an error, not a wrapped id).
+        let count = crate::marker::family_layout(family)?.id_count;
+        let last = rows
+            .checked_mul(cols)
+            .and_then(|n| first_id.checked_add(n - 1));
+        match last {
+            Some(last) if last < count => {}
+            _ => {
+                return Err(TrackError::UnknownId {
+                    family,
+                    id: last.unwrap_or(u32::MAX),
+                    count,
+                })
+            }
+        }
         let pitch = tag_size_m + gap_m;
-        let mut tags = Vec::new();
+        let mut tags = Vec::with_capacity((rows * cols) as usize);
         for r in 0..rows {
             for c in 0..cols {
                 tags.push(BoardTag {

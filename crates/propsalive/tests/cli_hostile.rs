@@ -51,6 +51,24 @@ fn regression_board_65536x65536_is_refused_not_wrapped() {
         "{e}"
     );
     assert!(t0.elapsed() < Duration::from_secs(60));
+    // A first id past the family's codes (wrapped in `Board::grid` before): refused.
+    let o = propsalive(&[
+        "track",
+        img.to_str().expect("utf-8"),
+        "--fov-deg",
+        "50",
+        "--tag-size-m",
+        "0.04",
+        "--board",
+        "2x2",
+        "--gap-m",
+        "0.01",
+        "--first-id",
+        "4294967295",
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("has no id"), "{e}");
     let o = propsalive(&[
         "marker",
         "--board",

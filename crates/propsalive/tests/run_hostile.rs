@@ -410,3 +410,70 @@ fn regression_fifo_as_input_is_named_as_a_fifo() {
     assert!(!o.status.success(), "{e}");
     assert!(e.contains("FIFO") && !e.contains("no such file"), "{e}");
 }
+
+/// A PNG whose header says `w` x `h` (one tiny IDAT: only the header is ever read).
+fn png_claiming(w: u32, h: u32) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image::RgbImage::from_pixel(1, 1, image::Rgb([1, 2, 3]))
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .expect("png");
+    // Signature (8), IHDR length (4), "IHDR" (4), width, height, ...; the CRC covers 12..29.
+    bytes[16..20].copy_from_slice(&w.to_be_bytes());
+    bytes[20..24].copy_from_slice(&h.to_be_bytes());
+    let crc = crc32(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+    bytes
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in data {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+#[test]
+fn regression_a_20000x20000_still_is_refused_not_an_abort() {
+    // `run` on one 20000x20000 PNG aborted at 3.1 GB; now refused from the header, alone or
+    // among the take's stills.
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let alone = take.root.join("stills_huge_alone");
+    let _ = std::fs::remove_dir_all(&alone);
+    std::fs::create_dir_all(&alone).expect("mkdir");
+    std::fs::write(alone.join("big.png"), png_claiming(20000, 20000)).expect("png");
+    let o = run(&take.shot, &alone, &fresh(take, "huge_alone"), &[]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("big.png") && e.contains("20000x20000") && e.contains("limit"),
+        "{e}"
+    );
+    let among = take.root.join("stills_huge_among");
+    let _ = std::fs::remove_dir_all(&among);
+    std::fs::create_dir_all(&among).expect("mkdir");
+    for i in 1..=STILLS {
+        let name = format!("s{i}.png");
+        std::fs::copy(take.stills.join(&name), among.join(&name)).expect("copy");
+    }
+    std::fs::write(among.join("s9.png"), png_claiming(20000, 20000)).expect("png");
+    let out = fresh(take, "huge_among");
+    let o = run(&take.shot, &among, &out, &[]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    let l = log(&out);
+    let why = l[&(STILLS as u64)]["skipped"].as_str().unwrap_or_default();
+    assert!(why.contains("20000x20000"), "{why}");
+    assert_eq!(frames(&out), frames(&take.reference));
+}
