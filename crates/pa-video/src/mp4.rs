@@ -432,7 +432,9 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
             let t = &tkhd[tkhd.len() - 8..];
             let w = u32::from_be_bytes([t[0], t[1], t[2], t[3]]);
             let h = u32::from_be_bytes([t[4], t[5], t[6], t[7]]);
-            display = ((w + 0x8000) >> 16, (h + 0x8000) >> 16);
+            // 16.16 fixed point, rounded; widened so 0xffff8000 and up cannot overflow.
+            let round = |v: u32| ((u64::from(v) + 0x8000) >> 16) as u32;
+            display = (round(w), round(h));
         }
     }
 
