@@ -191,7 +191,9 @@ impl VideoReader {
         backend: Option<Backend>,
     ) -> Result<VideoReader, VideoError> {
         let path = path.as_ref();
-        let mut file = File::open(path).map_err(|e| VideoError::io(path, "open", e))?;
+        // Regular files only: a FIFO or a device would block or never end.
+        let mut file = pa_io::open_regular(path)
+            .map_err(|e| VideoError::io(path, "open", std::io::Error::from(e)))?;
         let len = file
             .metadata()
             .map_err(|e| VideoError::io(path, "read", e))?

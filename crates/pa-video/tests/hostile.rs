@@ -376,3 +376,22 @@ fn regression_overwrite_never_replaces_a_fifo() {
     let meta = std::fs::symlink_metadata(&fifo).expect("still there");
     assert!(meta.file_type().is_fifo());
 }
+
+/// Regression (issue 11): a FIFO named like a video blocked `track` forever in `open`.
+#[test]
+fn regression_a_fifo_as_a_video_is_refused_at_once() {
+    let dir = std::env::temp_dir().join(format!("pa_video_fifo_in_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let fifo = dir.join("take.mp4");
+    let ok = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo");
+    assert!(ok.success());
+    let e = pa_video::VideoReader::open(&fifo).expect_err("a FIFO");
+    assert!(
+        e.to_string().contains("take.mp4") && e.to_string().contains("FIFO"),
+        "{e}"
+    );
+}

@@ -150,6 +150,8 @@ impl JsonLog {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         }
+        // Never a FIFO (it would block the window), a device or a link.
+        pa_io::check_replaceable(path)?;
         let f = std::fs::File::create(path)
             .with_context(|| format!("creating the log {}", path.display()))?;
         Ok(Self {
