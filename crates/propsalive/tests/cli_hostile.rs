@@ -173,3 +173,18 @@ fn regression_closed_stdout_does_not_panic() {
         println!("skipped the full-disk half: /dev/full not available");
     }
 }
+
+#[test]
+fn regression_bench_json_never_replaces_a_fifo() {
+    // `bench --json` renamed its table over a FIFO, even without --force.
+    use std::os::unix::fs::FileTypeExt;
+    let d = tmp("bench_fifo");
+    let fifo = d.join("bench.json");
+    let ok = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(ok.success());
+    let o = propsalive(&["bench", "--quick", "--json", fifo.to_str().expect("utf-8")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("FIFO"), "{e}");
+    let meta = std::fs::symlink_metadata(&fifo).expect("still there");
+    assert!(meta.file_type().is_fifo());
+}
