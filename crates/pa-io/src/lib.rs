@@ -376,6 +376,7 @@ mod tests {
         use std::os::unix::ffi::OsStrExt;
         let c = std::ffi::CString::new(p.as_os_str().as_bytes()).expect("path");
         // SAFETY: a valid NUL-terminated path; mkfifo has no other preconditions.
+        #[allow(unsafe_code)] // FFI (test only): std has no mkfifo.
         let rc = unsafe { libc::mkfifo(c.as_ptr(), 0o644) };
         assert_eq!(rc, 0, "mkfifo");
     }

@@ -7,6 +7,10 @@
 //! matrices 64 bytes per joint, morph target deltas 12 bytes a vertex (positions always,
 //! normals when present), morph weights 4 bytes per target per node, and per animation channel
 //! its key times (4 bytes each) and values (4 bytes per component) plus a fixed overhead.
+//! A primitive with triangles but no NORMAL also counts its flat normals (`crate::flat`): 12
+//! bytes a vertex in place for a non-indexed triangle list, otherwise an un-welded copy of 3
+//! vertices per triangle (positions, normals, an index, UVs and joints and weights when
+//! present; 12 bytes of morph deltas per target), whose vertices are drawn too.
 //! Arithmetic saturates, so an absurd count cannot wrap around into a small total.
 
 use gltf::mesh::{Mode, Semantic};
@@ -131,6 +135,35 @@ pub(crate) fn check(doc: &gltf::Document, limits: &Limits) -> Result<(), ErrorKi
                 }
             }
             targets = targets.max(prim_targets);
+            if prim.get(&Semantic::Normals).is_none() {
+                // Flat normals (`crate::flat`): in place for a non-indexed triangle list,
+                // else an un-welded copy of 3 vertices per triangle.
+                let corners = match prim.mode() {
+                    Mode::Triangles => k / 3 * 3,
+                    Mode::TriangleStrip | Mode::TriangleFan => {
+                        k.saturating_sub(2).saturating_mul(3)
+                    }
+                    _ => 0,
+                };
+                let in_place = prim.indices().is_none() && prim.mode() == Mode::Triangles;
+                if corners > 0 && in_place {
+                    vertex.add(bytes(n, 12), || at("flat normals"))?;
+                } else if corners > 0 {
+                    let mut per_corner = 12 + 12 + 4;
+                    if prim.get(&Semantic::TexCoords(0)).is_some() {
+                        per_corner += 8;
+                    }
+                    if prim.get(&Semantic::Joints(0)).is_some() {
+                        per_corner += 48;
+                    }
+                    vertex.add(bytes(corners, per_corner), || at("flat-shaded copy"))?;
+                    morph.add(
+                        bytes(corners, 12).saturating_mul(prim_targets as u64),
+                        || at("flat-shaded copy's morph targets"),
+                    )?;
+                    vertices = vertices.saturating_add(corners as u64);
+                }
+            }
         }
         mesh_vertices.push(vertices);
         mesh_targets.push(targets);

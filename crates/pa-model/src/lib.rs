@@ -7,6 +7,8 @@
 //! - [`Model::load`] reads `.glb` / `.gltf` (external `.bin` and images, data URIs) into our own
 //!   plain types, checking every byte range, index and count on the way (hostile files give a
 //!   [`ModelError`] naming the file and the problem, never a panic or an unbounded allocation).
+//!   A primitive without `NORMAL` gets flat normals there, once, for every renderer
+//!   ([`Primitive::drawn`]); its own vertices stay the file's.
 //! - [`anim`] samples an animation at any time into a [`anim::Pose`] (LINEAR, STEP,
 //!   CUBICSPLINE; translation, rotation, scale, morph weights).
 //! - [`skin`] is the CPU reference of linear blend skinning `v' = sum_i w_i M_i v` plus morph
@@ -37,11 +39,11 @@
 //! |-----------------------------|------------|------------------------------------------------------------|
 //! | `max_file_bytes`            | 2 GiB      | one file read from disk (model, `.bin`, image)             |
 //! | `max_input_bytes`           | 2 GiB      | all buffer data and encoded images together (files and data URIs; the GLB binary chunk is not copied) |
-//! | `max_vertex_bytes`          | 1 GiB      | decoded vertex attributes, triangle indices and inverse bind matrices, in bytes of [`Model`]'s types |
-//! | `max_morph_bytes`           | 1 GiB      | decoded morph target deltas plus every node's morph weights |
+//! | `max_vertex_bytes`          | 1 GiB      | decoded vertex attributes, triangle indices and inverse bind matrices, plus the flat normals and flat-shaded copies of primitives without normals ([`Primitive::flat_shaded`]), in bytes of [`Model`]'s types |
+//! | `max_morph_bytes`           | 1 GiB      | decoded morph target deltas (the flat-shaded copies' included) plus every node's morph weights |
 //! | `max_animation_bytes`       | 512 MiB    | decoded key times and values of every channel, plus a fixed cost per channel |
 //! | `max_nodes`                 | 1,048,576  | nodes                                                      |
-//! | `max_instanced_vertices`    | 33,554,432 | vertices drawn: each mesh node counts its mesh's vertices (bounds posing and export) |
+//! | `max_instanced_vertices`    | 33,554,432 | vertices drawn: each mesh node counts its mesh's vertices and those of their flat-shaded copies (bounds posing and export) |
 //! | `max_image_side`            | 16,384 px  | width or height of one decoded image                       |
 //! | `max_image_bytes`           | 1 GiB      | all decoded RGBA8 images together                          |
 //!
@@ -56,6 +58,7 @@ pub mod accessor;
 pub mod anim;
 mod budget;
 pub mod export;
+mod flat;
 mod load;
 pub mod skin;
 mod validate;
@@ -257,10 +260,17 @@ pub struct MorphTarget {
 }
 
 /// One drawable primitive of a mesh (always a triangle list after loading).
+///
+/// Its vertices are the file's, in the file's order (posing, export and the conformance
+/// references compare them by index). Draw it through [`Primitive::drawn`]: a primitive whose
+/// file has no `NORMAL` is drawn with flat normals (glTF 2.0 requires them), computed once
+/// at load (see [`Primitive::flat_shaded`]).
 #[derive(Debug, Clone, Default)]
 pub struct Primitive {
     pub positions: Vec<Vec3>,
-    /// Empty when the file has none (flat normals are then computed where needed).
+    /// The file's NORMAL. When the file has none: the flat normals for a non-indexed
+    /// triangle list (each vertex belongs to one triangle, so they fit in place), otherwise
+    /// empty, and [`Primitive::flat_shaded`] holds the flat-shaded copy that is drawn.
     pub normals: Vec<Vec3>,
     /// TEXCOORD_0; empty when absent.
     pub uvs: Vec<[f32; 2]>,
@@ -273,12 +283,27 @@ pub struct Primitive {
     pub indices: Vec<u32>,
     pub material: Option<usize>,
     pub morph_targets: Vec<MorphTarget>,
+    /// For a primitive with triangles whose file has no NORMAL and whose triangles share
+    /// vertices (indexed lists, strips, fans): the same triangles un-welded, three vertices
+    /// of their own each (triangle `t` is vertices `3t..3t + 3`), every per-vertex attribute
+    /// copied and the triangle's unit normal on each corner; its morph targets move positions
+    /// only (no normal deltas), and it has no `flat_shaded` of its own. Both render paths
+    /// draw it instead of this primitive ([`Primitive::drawn`]); `None` otherwise. The
+    /// approximations (morphs and skinning carry the rest-pose flat normals) are described in
+    /// the loader's `flat` module.
+    pub flat_shaded: Option<Box<Primitive>>,
 }
 
 impl Primitive {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
+    }
+
+    /// The primitive as the renderers draw it: [`Primitive::flat_shaded`] when there is one,
+    /// else this primitive. Same triangles, same material; every triangle has normals.
+    pub fn drawn(&self) -> &Primitive {
+        self.flat_shaded.as_deref().unwrap_or(self)
     }
 }
 

@@ -660,7 +660,8 @@ impl<'a> Loader<'a> {
             });
         }
 
-        Ok(Primitive {
+        let has_normals = !normals.is_empty();
+        let mut out = Primitive {
             positions,
             normals,
             uvs,
@@ -669,7 +670,25 @@ impl<'a> Loader<'a> {
             indices,
             material: prim.material().index(),
             morph_targets,
-        })
+            flat_shaded: None,
+        };
+        // glTF: without NORMAL, flat normals (see `crate::flat`). The choice between in place
+        // and a copy depends on the file's structure only, as the budget counted it.
+        if !has_normals && !out.indices.is_empty() {
+            if prim.indices().is_none() && prim.mode() == Mode::Triangles {
+                crate::flat::fill_in_place(&mut out);
+            } else {
+                let copy = crate::flat::unwelded(&out).ok_or_else(|| {
+                    perr(format!(
+                        "has no NORMAL, and its {} triangles have too many corners (over \
+                         2^32) for the flat-shaded copy",
+                        out.triangle_count()
+                    ))
+                })?;
+                out.flat_shaded = Some(Box::new(copy));
+            }
+        }
+        Ok(out)
     }
 
     /// JOINTS_0/1 and WEIGHTS_0/1: up to 8 influences, validated and normalised.

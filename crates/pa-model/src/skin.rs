@@ -4,7 +4,10 @@
 //! where `p = base + sum_k m_k * delta_k` (morph targets first); the skinned node's own
 //! transform is ignored, as the glTF spec says. For an unskinned node,
 //! `p_world = world_from_node * p`. Normals use the inverse transpose of the same (blended)
-//! matrix and are renormalised.
+//! matrix and are renormalised. Flat normals (primitives without NORMAL in the file, see
+//! [`crate::Primitive::drawn`]) are the rest pose's face normals carried the same way, per
+//! corner: exact for a face whose corners share their influences, approximate otherwise, and
+//! unchanged by morph targets.
 
 use glam::{Mat3, Mat4, Vec3};
 
@@ -17,7 +20,8 @@ pub struct PosedPrimitive {
     pub node: usize,
     pub mesh: usize,
     pub primitive: usize,
-    /// World-space positions in glTF vertex order.
+    /// World-space positions in glTF vertex order ([`pose_drawn_meshes`]: the order of the
+    /// primitive as drawn).
     pub positions: Vec<Vec3>,
     /// World-space unit normals (empty when the primitive has none).
     pub normals: Vec<Vec3>,
@@ -100,14 +104,33 @@ fn transform_normal(m: &Mat4, n: Vec3) -> Vec3 {
     (it * n).normalize_or_zero()
 }
 
-/// Poses every mesh node of the model: morph, then skin (or the node transform).
+/// Poses every mesh node of the model: morph, then skin (or the node transform). Vertices
+/// in the file's order (what export and the conformance references use); a primitive whose
+/// file has no normals has none here unless they fit in place (see [`Primitive::normals`]).
 pub fn pose_meshes(model: &Model, pose: &Pose) -> Vec<PosedPrimitive> {
+    pose_with(model, pose, |p| p)
+}
+
+/// [`pose_meshes`] of the primitives as they are drawn ([`Primitive::drawn`]): a primitive
+/// without normals in the file is posed as its flat-shaded copy (its vertices in that copy's
+/// order), so every primitive with triangles has normals. The flat normals are the rest
+/// pose's, carried by each corner's matrix like any normal (exact for a rigid part).
+pub fn pose_drawn_meshes(model: &Model, pose: &Pose) -> Vec<PosedPrimitive> {
+    pose_with(model, pose, Primitive::drawn)
+}
+
+fn pose_with(
+    model: &Model,
+    pose: &Pose,
+    pick: impl Fn(&Primitive) -> &Primitive,
+) -> Vec<PosedPrimitive> {
     let world = pose.world_from_node(model);
     let mut out = Vec::new();
     for (ni, node) in model.mesh_nodes() {
         let Some(mi) = node.mesh else { continue };
         let skin_mats = node.skin.map(|s| joint_matrices(model, s, &world));
         for (pi, prim) in model.meshes[mi].primitives.iter().enumerate() {
+            let prim = pick(prim);
             let (mut positions, mut normals) = morph(prim, &pose.morph_weights[ni]);
             match &skin_mats {
                 Some(jm) if !prim.joints.is_empty() => {

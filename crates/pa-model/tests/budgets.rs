@@ -128,7 +128,8 @@ fn node_morph_weights_count_against_the_morph_budget() {
     doc["nodes"] = json!(nodes);
     let bytes = serde_json::to_vec(&doc).expect("json");
     let mut options = LoadOptions::default();
-    // 100 targets x 36 bytes (3 vertices) + 1001 nodes x 100 weights x 4 bytes = 404,000.
+    // 100 targets x 36 bytes (3 vertices) + 1001 nodes x 100 weights x 4 bytes = 404,000,
+    // plus (no NORMAL) the flat-shaded copy's 100 targets x 36 bytes (3 corners) = 407,600.
     options.limits.max_morph_bytes = 400_000;
     let e = Model::from_slice(&bytes, "weights.gltf", None, &options)
         .expect_err("over the morph budget")
@@ -139,7 +140,9 @@ fn node_morph_weights_count_against_the_morph_budget() {
             && e.contains("morph weights"),
         "{e}"
     );
-    options.limits.max_morph_bytes = 404_000;
+    options.limits.max_morph_bytes = 407_599;
+    Model::from_slice(&bytes, "weights.gltf", None, &options).expect_err("one byte short");
+    options.limits.max_morph_bytes = 407_600;
     let m = Model::from_slice(&bytes, "weights.gltf", None, &options).expect("fits");
     // Only the weights of the targets are kept, however long the mesh's list.
     assert!(m
@@ -161,7 +164,9 @@ fn vertex_budget_names_the_primitive_and_attribute() {
         "tri.gltf: decoded vertex data needs 180 bytes, over the budget of 40 bytes \
          (Limits::max_vertex_bytes); the budget ran out at mesh 0 primitive 0 JOINTS_0/WEIGHTS_0"
     );
-    options.limits.max_vertex_bytes = 36 + 144 + 12 + 128;
+    // Positions, joints and weights, indices, inverse bind matrices, and (no NORMAL) the
+    // flat-shaded copy: 3 corners x (position 12 + normal 12 + index 4 + joints/weights 48).
+    options.limits.max_vertex_bytes = 36 + 144 + 12 + 128 + 3 * (12 + 12 + 4 + 48);
     Model::from_slice(&bytes, "tri.gltf", None, &options).expect("exactly fits");
     options.limits.max_vertex_bytes -= 1;
     Model::from_slice(&bytes, "tri.gltf", None, &options).expect_err("one byte short");

@@ -114,13 +114,21 @@ impl RenderPath {
     }
 }
 
+/// A render path name other than `gpu` or `cpu` ([`RenderPath`]'s `FromStr`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("render path {given:?}: expected gpu or cpu")]
+pub struct ParseRenderPathError {
+    /// The name given.
+    pub given: String,
+}
+
 impl std::str::FromStr for RenderPath {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = ParseRenderPathError;
+    fn from_str(s: &str) -> Result<Self, ParseRenderPathError> {
         match s {
             "gpu" => Ok(Self::Gpu),
             "cpu" => Ok(Self::Cpu),
-            _ => Err(format!("render path {s:?}: expected gpu or cpu")),
+            _ => Err(ParseRenderPathError { given: s.into() }),
         }
     }
 }
@@ -870,7 +878,7 @@ impl ArPipeline {
                         .iter()
                         .zip(&frames)
                         .flat_map(|(p, (key_pose, _, _))| {
-                            let posed = pa_model::skin::pose_meshes(p.model, key_pose);
+                            let posed = pa_model::skin::pose_drawn_meshes(p.model, key_pose);
                             irradiance_samples(p.model, &posed, p.marker_from_prop, &view, per_prop)
                         })
                         .collect();

@@ -3,7 +3,9 @@
 //! (`pa_model::skin`) into reusable buffers, placed on the marker, as draw data.
 //!
 //! The counterpart of [`crate::twin::GpuTwin`]: the same primitives, the same order, the same
-//! placement (`world` is the marker frame: `world_from_model = marker_from_prop`).
+//! placement (`world` is the marker frame: `world_from_model = marker_from_prop`). Both draw
+//! each primitive as [`pa_model::Primitive::drawn`] (flat-shaded when the file has no
+//! normals).
 
 use glam::{Mat3, Mat4, Vec3};
 use pa_model::{anim::Pose, skin, Model};
@@ -52,6 +54,7 @@ impl CpuTwin {
         for (ni, node) in model.mesh_nodes() {
             let Some(mi) = node.mesh else { continue };
             for (pi, prim) in model.meshes[mi].primitives.iter().enumerate() {
+                let prim = prim.drawn();
                 if prim.indices.is_empty() {
                     continue;
                 }
@@ -121,7 +124,7 @@ impl CpuTwin {
             .enumerate()
             .map(|(i, p)| CpuDepthMesh {
                 positions_world: &self.key[i].positions_world,
-                indices: &model.meshes[p.mesh].primitives[p.primitive].indices,
+                indices: &model.meshes[p.mesh].primitives[p.primitive].drawn().indices,
                 mirrored: self.key[i].mirrored,
                 cull_back_faces: p.closed,
             })
@@ -134,7 +137,7 @@ impl CpuTwin {
         p: &CpuTwinPrimitive,
         posed: &'a PosedBuffers,
     ) -> CpuPosedMesh<'a> {
-        let prim = &model.meshes[p.mesh].primitives[p.primitive];
+        let prim = model.meshes[p.mesh].primitives[p.primitive].drawn();
         CpuPosedMesh {
             positions_world: &posed.positions_world,
             normals_world: &posed.normals_world,
@@ -168,7 +171,7 @@ fn pose_into(
         .collect();
     let mut skin_cache: Vec<Option<Vec<Mat4>>> = vec![None; model.nodes.len()];
     for (p, buf) in primitives.iter().zip(out.iter_mut()) {
-        let prim = &model.meshes[p.mesh].primitives[p.primitive];
+        let prim = model.meshes[p.mesh].primitives[p.primitive].drawn();
         let node = &model.nodes[p.node];
         let weights = pose
             .morph_weights

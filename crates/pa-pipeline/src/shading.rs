@@ -182,7 +182,9 @@ const MIN_ALBEDO: f32 = 0.03;
 
 /// Irradiance samples at the visible vertices of the posed key-pose primitives (`posed`, in
 /// the model's scene frame; `world_from_model` places them in the world), at most about
-/// `max_samples` of them (vertices are strided evenly).
+/// `max_samples` of them (vertices are strided evenly). The primitives are posed as drawn
+/// (`pa_model::skin::pose_drawn_meshes`): vertex `v` is vertex `v` of
+/// [`pa_model::Primitive::drawn`], whose UVs give the albedo.
 pub fn irradiance_samples(
     model: &Model,
     posed: &[PosedPrimitive],
@@ -207,7 +209,8 @@ pub fn irradiance_samples(
 }
 
 /// [`irradiance_samples`] over any posed primitives: `(mesh, primitive, positions, normals)`
-/// in the model's scene frame (placed in the world by `world_from_model`).
+/// in the model's scene frame (placed in the world by `world_from_model`), vertices in the
+/// order of the primitive as drawn ([`pa_model::Primitive::drawn`]).
 pub fn irradiance_samples_from<'a>(
     model: &Model,
     posed: impl Iterator<Item = (usize, usize, &'a [Vec3], &'a [Vec3])> + Clone,
@@ -230,6 +233,7 @@ pub fn irradiance_samples_from<'a>(
             .meshes
             .get(mesh)
             .and_then(|m| m.primitives.get(primitive))
+            .map(pa_model::Primitive::drawn)
         else {
             continue;
         };

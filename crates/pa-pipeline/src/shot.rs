@@ -68,7 +68,7 @@ const FIELDS: &[&str] = &[
     "yaw_deg",
 ];
 
-/// Errors reading or checking a shot; each names the file.
+/// Errors reading, checking or writing a shot; each but [`ShotError::Serialize`] names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ShotError {
     /// Not a regular file, over [`MAX_SHOT_BYTES`], not UTF-8, or an operating-system error.
@@ -86,6 +86,9 @@ pub enum ShotError {
     /// The shot parses but cannot be used.
     #[error("{}: {message}", path.display())]
     Invalid { path: PathBuf, message: String },
+    /// [`Shot::to_toml`] failed (no file involved).
+    #[error("{0}")]
+    Serialize(toml::ser::Error),
 }
 
 /// Exactly `N` numbers (serde's arrays would silently drop extra ones from TOML).
@@ -238,8 +241,8 @@ impl Shot {
     }
 
     /// Writes the shot as TOML.
-    pub fn to_toml(&self) -> Result<String, String> {
-        toml::to_string_pretty(self).map_err(|e| e.to_string())
+    pub fn to_toml(&self) -> Result<String, ShotError> {
+        toml::to_string_pretty(self).map_err(ShotError::Serialize)
     }
 
     /// A path named in the shot, relative to the shot file's folder.

@@ -5,8 +5,10 @@ use glam::Mat4;
 use pa_model::{anim::Pose, skin, Model, Primitive};
 use pa_render::{CpuMesh, CpuTexture, Draw, GpuMesh, GpuTexture, RenderError, Renderer};
 
-/// Converts a model primitive to the renderer's plain mesh type.
+/// Converts a model primitive, as it is drawn ([`Primitive::drawn`]: flat-shaded when the
+/// file has no normals), to the renderer's plain mesh type.
 pub fn cpu_mesh_from_primitive(prim: &Primitive) -> CpuMesh {
+    let prim = prim.drawn();
     let v3 = |v: &Vec<glam::Vec3>| v.iter().map(|p| p.to_array()).collect::<Vec<_>>();
     CpuMesh {
         positions: v3(&prim.positions),

@@ -27,7 +27,9 @@ fn compare(renderer: &mut Renderer, model: &Model, animation: usize, times: &[f3
     let mut worst = 0f32;
     for &t in times {
         let pose = anim::sample(model, animation, t);
-        let cpu = skin::pose_meshes(model, &pose);
+        // The twin uploads each primitive as drawn (a flat-shaded copy for files without
+        // normals, whose posing `pa-model` checks against the file-order posing).
+        let cpu = skin::pose_drawn_meshes(model, &pose);
         let (lo, hi) = skin::bounds(&cpu).expect("vertices");
         let diag = (hi - lo).length().max(1e-6);
         let frame = twin.frame(model, &pose, glam::Mat4::IDENTITY);

@@ -21,6 +21,7 @@ use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
 use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
+use crate::SceneError;
 
 /// Metrics of one frame.
 #[derive(Debug, Clone, Default)]
@@ -99,15 +100,11 @@ pub fn measure(
     renderer: &mut Renderer,
     frame: &SceneFrame,
     out: &ArFrame,
-) -> Result<FrameMetrics, String> {
+) -> Result<FrameMetrics, SceneError> {
     let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
     let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
-    let truth_mask = scene
-        .prop_mask(renderer, frame.camera_from_marker, frame.time_s)
-        .map_err(|e| e.to_string())?;
-    let key_mask = scene
-        .prop_mask(renderer, frame.camera_from_marker, key_time)
-        .map_err(|e| e.to_string())?;
+    let truth_mask = scene.prop_mask(renderer, frame.camera_from_marker, frame.time_s)?;
+    let key_mask = scene.prop_mask(renderer, frame.camera_from_marker, key_time)?;
     let revealed: Vec<bool> = key_mask
         .iter()
         .zip(&truth_mask)
@@ -143,15 +140,14 @@ pub fn pipeline_for(
     scene: &Scene,
     renderer: &mut Renderer,
     settings: ArSettings,
-) -> Result<ArPipeline, String> {
+) -> Result<ArPipeline, SceneError> {
     let camera = CameraModel::pinhole(scene.intrinsics);
     let tracker = Tracker::new(
         camera,
         TrackTarget::Board(scene.board.clone()),
         DetectorConfig::default(),
         TrackerConfig::default(),
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let mut p = ArPipeline::new(
         renderer,
         scene.model.clone(),
@@ -160,29 +156,28 @@ pub fn pipeline_for(
         marker_from_prop(),
         Some(tracker),
         settings,
-    )
-    .map_err(|e| e.to_string())?;
-    let (plate, plate_pose) = scene.clean_plate(renderer).map_err(|e| e.to_string())?;
-    let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)
-        .map_err(|e| e.to_string())?;
+    )?;
+    let (plate, plate_pose) = scene.clean_plate(renderer)?;
+    let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
     p.set_clean_plate(plate, plate_pose);
     Ok(p)
 }
 
 /// Runs `settings` over the frames `frames` of a scene built from `spec`; `each` sees every
-/// (frame, output, metrics).
-pub fn run_scene(
+/// (frame, output, metrics). The caller's error type `E` takes the scene's errors too, and an
+/// error from `each` ends the run.
+pub fn run_scene<E: From<SceneError>>(
     renderer: &mut Renderer,
     spec: SceneSpec,
     settings: ArSettings,
     frames: impl IntoIterator<Item = u32>,
-    mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), String>,
-) -> Result<Vec<FrameMetrics>, String> {
+    mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
     let mut all = Vec::new();
     for i in frames {
-        let f = scene.frame(renderer, i).map_err(|e| e.to_string())?;
+        let f = scene.frame(renderer, i).map_err(SceneError::from)?;
         let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
         let out = pipeline
             .process(
@@ -194,7 +189,7 @@ pub fn run_scene(
                 key_time,
                 i as f64 / scene.spec.fps as f64,
             )
-            .map_err(|e| e.to_string())?;
+            .map_err(SceneError::from)?;
         let m = measure(&scene, renderer, &f, &out)?;
         each(&f, &out, &m)?;
         all.push(m);

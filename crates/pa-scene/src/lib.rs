@@ -6,10 +6,12 @@
 //! moving camera sees: the physical key prop (the input), the in-between poses as if printed
 //! (the ground truth), and a clean plate.
 
+mod error;
 pub mod eval;
 pub mod prop;
 pub mod scene;
 
+pub use error::SceneError;
 pub use prop::{prop_glb, prop_model, PropSpec};
 pub use scene::{Scene, SceneFrame, SceneSpec};
 

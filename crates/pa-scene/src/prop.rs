@@ -15,6 +15,8 @@ use std::f32::consts::{PI, TAU};
 use glam::{Mat4, Quat, Vec2, Vec3};
 use serde_json::json;
 
+use crate::SceneError;
+
 /// Resolution and size of the generated prop.
 #[derive(Debug, Clone, Copy)]
 pub struct PropSpec {
@@ -346,7 +348,7 @@ fn clip_keys(fps: f32) -> Vec<(f32, Quat, Quat, Quat)> {
 }
 
 /// Builds the prop as GLB bytes (mesh, texture, skin, the clip "Animate" keyed at 24 fps).
-pub fn prop_glb(spec: &PropSpec) -> Result<Vec<u8>, String> {
+pub fn prop_glb(spec: &PropSpec) -> Result<Vec<u8>, SceneError> {
     let mesh = prop_mesh(spec);
     let h = spec.height_m;
     let rest = joint_rest(h);
@@ -430,8 +432,7 @@ pub fn prop_glb(spec: &PropSpec) -> Result<Vec<u8>, String> {
     let tex = prop_texture(spec);
     let mut png = Vec::new();
     image::DynamicImage::ImageRgba8(tex)
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
     let image_view = push(&mut bin, png, None);
     // Animation keys.
     let keys = clip_keys(24.0);
@@ -500,17 +501,16 @@ pub fn prop_glb(spec: &PropSpec) -> Result<Vec<u8>, String> {
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}],
     });
-    pa_model::export::glb_container(&doc, bin)
+    pa_model::export::glb_container(&doc, bin).map_err(SceneError::Glb)
 }
 
 /// The built-in prop loaded as a [`pa_model::Model`].
-pub fn prop_model(spec: &PropSpec) -> Result<pa_model::Model, String> {
+pub fn prop_model(spec: &PropSpec) -> Result<pa_model::Model, SceneError> {
     let glb = prop_glb(spec)?;
-    pa_model::Model::from_slice(
+    Ok(pa_model::Model::from_slice(
         &glb,
         "builtin:prop.glb",
         None,
         &pa_model::LoadOptions::default(),
-    )
-    .map_err(|e| e.to_string())
+    )?)
 }

@@ -23,6 +23,7 @@ use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
 use crate::prop::{prop_model, value_noise, PropSpec};
+use crate::SceneError;
 
 /// Table surface texture.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -184,13 +185,13 @@ pub const TABLE_M: f32 = 1.6;
 
 /// The printed board sheet: white paper with the board's tags, `px` square over
 /// [`BOARD_SHEET_M`].
-pub fn board_texture(board: &Board, px: u32) -> Result<CpuTexture, String> {
+pub fn board_texture(board: &Board, px: u32) -> Result<CpuTexture, SceneError> {
     let mut cells = Vec::new();
     for t in &board.tags {
-        let c = pa_track::marker_cells(board.family, t.id).map_err(|e| e.to_string())?;
+        let c = pa_track::marker_cells(board.family, t.id)?;
         cells.push(c);
     }
-    let layout = pa_track::family_layout(board.family).map_err(|e| e.to_string())?;
+    let layout = pa_track::family_layout(board.family)?;
     let scale = layout.total_cells as f64 / layout.border_cells as f64;
     let mut rgba8 = Vec::with_capacity((px * px * 4) as usize);
     for y in 0..px {
@@ -270,29 +271,21 @@ pub const FAR_M: f32 = 5.0;
 
 impl Scene {
     /// Builds the set and uploads it to `renderer`.
-    pub fn new(spec: SceneSpec, renderer: &mut Renderer) -> Result<Self, String> {
+    pub fn new(spec: SceneSpec, renderer: &mut Renderer) -> Result<Self, SceneError> {
         if spec.key_frames.is_empty() {
-            return Err("a scene needs at least one key pose".into());
+            return Err(SceneError::NoKeyPose);
         }
         let model = prop_model(&spec.prop)?;
         let intrinsics =
-            Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)
-                .map_err(|e| e.to_string())?;
+            Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)?;
         let board = set_board();
-        let err = |e: RenderError| e.to_string();
-        let twin = GpuTwin::upload(renderer, &model).map_err(err)?;
-        let table_mesh = renderer
-            .upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005))
-            .map_err(err)?;
-        let table_tex = renderer
-            .upload_texture(&table_texture(spec.background, 2048, spec.seed as u32))
-            .map_err(err)?;
-        let sheet_mesh = renderer
-            .upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0))
-            .map_err(err)?;
-        let sheet_tex = renderer
-            .upload_texture(&board_texture(&board, 2080)?)
-            .map_err(err)?;
+        let twin = GpuTwin::upload(renderer, &model)?;
+        let table_mesh = renderer.upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005))?;
+        let table_tex =
+            renderer.upload_texture(&table_texture(spec.background, 2048, spec.seed as u32))?;
+        let sheet_mesh =
+            renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0))?;
+        let sheet_tex = renderer.upload_texture(&board_texture(&board, 2080)?)?;
         let path = camera_path(&spec);
         Ok(Self {
             spec,

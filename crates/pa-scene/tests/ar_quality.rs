@@ -27,7 +27,10 @@ fn frames() -> Vec<u32> {
 }
 
 fn run(renderer: &mut Renderer, settings: ArSettings) -> Vec<FrameMetrics> {
-    run_scene(renderer, spec(), settings, frames(), |_, _, _| Ok(())).expect("scene runs")
+    run_scene(renderer, spec(), settings, frames(), |_, _, _| {
+        Ok::<_, pa_scene::SceneError>(())
+    })
+    .expect("scene runs")
 }
 
 #[test]

@@ -40,6 +40,7 @@ struct Scaler(scaling::Context);
 // SAFETY: an SwsContext holds no thread-local state and is only ever used through `&mut`
 // by the one decoder that owns it, so moving it between threads is sound (FFmpeg documents
 // contexts as usable from any thread, one at a time).
+#[allow(unsafe_code)] // FFI: the ffmpeg-next context type is not `Send` by itself.
 unsafe impl Send for Scaler {}
 
 fn rational_fps(r: ff::Rational) -> Option<Fps> {

@@ -4,7 +4,54 @@
 //! types (to spot B-frames) and the `avcC` decoder configuration record.
 //!
 //! Everything parses untrusted bytes: every read is bounds-checked and returns `None` /
-//! `Err(String)` on malformed input; nothing panics.
+//! `Err(H264Error)` on malformed input; nothing panics.
+
+/// What is wrong with a malformed H.264 NAL unit, sample or `avcC` record. Names no file: the
+/// reader and writer wrap it in a [`crate::VideoError`] that does.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum H264Error {
+    /// A length-prefixed sample ends with too few bytes for the next NAL length.
+    #[error("{remaining} trailing bytes at offset {offset} are too few for a NAL length")]
+    TrailingBytes { remaining: usize, offset: usize },
+    /// A NAL unit's length runs past the end of its sample.
+    #[error("NAL unit of {len} bytes at offset {offset} overruns the {sample_len}-byte sample")]
+    NalOverrun {
+        len: usize,
+        offset: usize,
+        sample_len: usize,
+    },
+    /// The NAL unit given as a sequence parameter set is of another type.
+    #[error("not a sequence parameter set")]
+    NotSps,
+    /// The sequence parameter set ends early or its codes are malformed.
+    #[error("sequence parameter set is truncated or malformed")]
+    SpsTruncated,
+    /// A sequence parameter set field holds a value outside its range.
+    #[error("{field} {value} is out of range")]
+    ValueOutOfRange { field: &'static str, value: u64 },
+    /// A sequence parameter set field (or pair of fields) is outside its range.
+    #[error("{field} is out of range")]
+    FieldOutOfRange { field: &'static str },
+    /// The coded picture is larger than 65536 pixels on a side.
+    #[error("coded size {width}x{height} is out of range")]
+    CodedSize { width: u64, height: u64 },
+    /// The cropping window leaves no pixels.
+    #[error("frame cropping removes the whole picture")]
+    CropsWholePicture,
+    /// The `avcC` record ends early.
+    #[error("avcC record of {len} bytes is truncated")]
+    AvcCTruncated { len: usize },
+    /// The `avcC` record's version is not 1.
+    #[error("avcC configurationVersion {0} is not 1")]
+    AvcCVersion(u8),
+    /// The `avcC` record announces 3-byte NAL lengths.
+    #[error("avcC NAL length size of 3 bytes is invalid")]
+    AvcCLengthSize,
+    /// Parameter sets too short, too long or empty for an `avcC` record.
+    #[error("parameter set sizes are out of range")]
+    ParameterSetSizes,
+}
 
 /// NAL unit type: coded slice of a non-IDR picture.
 pub const NAL_SLICE: u8 = 1;
@@ -56,7 +103,7 @@ pub fn split_annex_b(data: &[u8]) -> Vec<&[u8]> {
 pub fn split_length_prefixed(
     sample: &[u8],
     length_size: usize,
-) -> impl Iterator<Item = Result<&[u8], String>> {
+) -> impl Iterator<Item = Result<&[u8], H264Error>> {
     let mut pos = 0usize;
     let mut failed = false;
     std::iter::from_fn(move || {
@@ -65,10 +112,10 @@ pub fn split_length_prefixed(
         }
         if sample.len() - pos < length_size {
             failed = true;
-            return Some(Err(format!(
-                "{} trailing bytes at offset {pos} are too few for a NAL length",
-                sample.len() - pos
-            )));
+            return Some(Err(H264Error::TrailingBytes {
+                remaining: sample.len() - pos,
+                offset: pos,
+            }));
         }
         let mut len = 0usize;
         for &b in &sample[pos..pos + length_size] {
@@ -77,10 +124,11 @@ pub fn split_length_prefixed(
         pos += length_size;
         if len > sample.len() - pos {
             failed = true;
-            return Some(Err(format!(
-                "NAL unit of {len} bytes at offset {pos} overruns the {}-byte sample",
-                sample.len()
-            )));
+            return Some(Err(H264Error::NalOverrun {
+                len,
+                offset: pos,
+                sample_len: sample.len(),
+            }));
         }
         let nal = &sample[pos..pos + len];
         pos += len;
@@ -343,19 +391,22 @@ fn parse_vui(r: &mut BitReader<'_>) -> Option<Vui> {
 }
 
 /// Parses a sequence parameter set NAL unit (including its one-byte NAL header).
-pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
+pub fn parse_sps(nal: &[u8]) -> Result<Sps, H264Error> {
     if nal_type(nal) != Some(NAL_SPS) {
-        return Err("not a sequence parameter set".into());
+        return Err(H264Error::NotSps);
     }
     let rbsp = unescape_rbsp(&nal[1..]);
     let mut r = BitReader::new(&rbsp);
-    let short = || "sequence parameter set is truncated or malformed".to_string();
+    let short = || H264Error::SpsTruncated;
     let profile_idc = r.bits(8).ok_or_else(short)? as u8;
     let constraint_flags = r.bits(8).ok_or_else(short)? as u8;
     let level_idc = r.bits(8).ok_or_else(short)? as u8;
     let sps_id = r.ue().ok_or_else(short)?;
     if sps_id > 31 {
-        return Err(format!("seq_parameter_set_id {sps_id} is out of range"));
+        return Err(H264Error::ValueOutOfRange {
+            field: "seq_parameter_set_id",
+            value: sps_id.into(),
+        });
     }
     let (mut chroma_format_idc, mut bit_depth_luma, mut bit_depth_chroma) = (1, 8, 8);
     if matches!(
@@ -364,9 +415,10 @@ pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
     ) {
         chroma_format_idc = r.ue().ok_or_else(short)?;
         if chroma_format_idc > 3 {
-            return Err(format!(
-                "chroma_format_idc {chroma_format_idc} is out of range"
-            ));
+            return Err(H264Error::ValueOutOfRange {
+                field: "chroma_format_idc",
+                value: chroma_format_idc.into(),
+            });
         }
         if chroma_format_idc == 3 {
             r.bit().ok_or_else(short)?;
@@ -374,7 +426,7 @@ pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
         bit_depth_luma = r.ue().ok_or_else(short)? + 8;
         bit_depth_chroma = r.ue().ok_or_else(short)? + 8;
         if bit_depth_luma > 14 || bit_depth_chroma > 14 {
-            return Err("bit depth is out of range".into());
+            return Err(H264Error::FieldOutOfRange { field: "bit depth" });
         }
         r.bit().ok_or_else(short)?;
         if r.bit().ok_or_else(short)? {
@@ -398,14 +450,21 @@ pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
             r.se().ok_or_else(short)?;
             let n = r.ue().ok_or_else(short)?;
             if n > 255 {
-                return Err("num_ref_frames_in_pic_order_cnt_cycle is out of range".into());
+                return Err(H264Error::FieldOutOfRange {
+                    field: "num_ref_frames_in_pic_order_cnt_cycle",
+                });
             }
             for _ in 0..n {
                 r.se().ok_or_else(short)?;
             }
         }
         2 => {}
-        t => return Err(format!("pic_order_cnt_type {t} is out of range")),
+        t => {
+            return Err(H264Error::ValueOutOfRange {
+                field: "pic_order_cnt_type",
+                value: t.into(),
+            })
+        }
     }
     r.ue().ok_or_else(short)?; // max_num_ref_frames
     r.bit().ok_or_else(short)?; // gaps_in_frame_num_value_allowed_flag
@@ -419,9 +478,10 @@ pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
     let coded_width = width_mbs * 16;
     let coded_height = height_map_units * 16 * if frame_mbs_only { 1 } else { 2 };
     if coded_width > 65536 || coded_height > 65536 {
-        return Err(format!(
-            "coded size {coded_width}x{coded_height} is out of range"
-        ));
+        return Err(H264Error::CodedSize {
+            width: coded_width,
+            height: coded_height,
+        });
     }
     let (mut width, mut height) = (coded_width, coded_height);
     if r.bit().ok_or_else(short)? {
@@ -438,7 +498,7 @@ pub fn parse_sps(nal: &[u8]) -> Result<Sps, String> {
         let cw = (l + rr) * ux;
         let ch = (t + b) * uy;
         if cw >= width || ch >= height {
-            return Err("frame cropping removes the whole picture".into());
+            return Err(H264Error::CropsWholePicture);
         }
         width -= cw;
         height -= ch;
@@ -495,20 +555,20 @@ pub struct AvcConfig {
 
 impl AvcConfig {
     /// Parses an `avcC` box payload.
-    pub fn parse(data: &[u8]) -> Result<AvcConfig, String> {
-        let short = || format!("avcC record of {} bytes is truncated", data.len());
+    pub fn parse(data: &[u8]) -> Result<AvcConfig, H264Error> {
+        let short = || H264Error::AvcCTruncated { len: data.len() };
         if data.len() < 7 {
             return Err(short());
         }
         if data[0] != 1 {
-            return Err(format!("avcC configurationVersion {} is not 1", data[0]));
+            return Err(H264Error::AvcCVersion(data[0]));
         }
         let length_size = usize::from(data[4] & 3) + 1;
         if length_size == 3 {
-            return Err("avcC NAL length size of 3 bytes is invalid".into());
+            return Err(H264Error::AvcCLengthSize);
         }
         let mut pos = 5;
-        let read_sets = |count: usize, pos: &mut usize| -> Result<Vec<Vec<u8>>, String> {
+        let read_sets = |count: usize, pos: &mut usize| -> Result<Vec<Vec<u8>>, H264Error> {
             let mut sets = Vec::new();
             for _ in 0..count {
                 let len_bytes = data.get(*pos..*pos + 2).ok_or_else(short)?;
@@ -538,10 +598,10 @@ impl AvcConfig {
 
     /// Serialises the record (4-byte NAL lengths), with the High-profile extension fields
     /// when the profile needs them.
-    pub fn from_parameter_sets(sps: &[u8], pps: &[u8]) -> Result<Vec<u8>, String> {
+    pub fn from_parameter_sets(sps: &[u8], pps: &[u8]) -> Result<Vec<u8>, H264Error> {
         let parsed = parse_sps(sps)?;
         if sps.len() < 4 || sps.len() > 65535 || pps.len() > 65535 || pps.is_empty() {
-            return Err("parameter set sizes are out of range".into());
+            return Err(H264Error::ParameterSetSizes);
         }
         let mut out = vec![1, sps[1], sps[2], sps[3], 0xfc | 3, 0xe0 | 1];
         out.extend_from_slice(&(sps.len() as u16).to_be_bytes());

@@ -386,7 +386,7 @@ fn open_native(mut file: File, len: u64, path: &Path) -> Result<VideoReader, Vid
     let avcc = track.entry.avcc.as_deref().ok_or_else(|| {
         VideoError::corrupt(path, "the H.264 sample entry has no 'avcC' configuration")
     })?;
-    let config = AvcConfig::parse(avcc).map_err(|d| VideoError::corrupt(path, d))?;
+    let config = AvcConfig::parse(avcc).map_err(|d| VideoError::corrupt(path, d.to_string()))?;
     let mut prefix = Vec::new();
     for set in config.sps.iter().chain(&config.pps) {
         prefix.extend_from_slice(&[0, 0, 0, 1]);
@@ -410,7 +410,8 @@ fn open_native(mut file: File, len: u64, path: &Path) -> Result<VideoReader, Vid
             })?
         }
     };
-    let sps: Sps = h264::parse_sps(&sps_nal).map_err(|d| VideoError::corrupt(path, d))?;
+    let sps: Sps =
+        h264::parse_sps(&sps_nal).map_err(|d| VideoError::corrupt(path, d.to_string()))?;
     let codec = sps.profile_name();
     if let Some(reason) = sps.native_limitation() {
         return Err(needs(codec, &reason));

@@ -297,6 +297,7 @@ impl Mp4Writer {
         let mut level = openh264_sys2::WELS_LOG_QUIET as u32;
         // SAFETY: the trace level is one of the options OpenH264 accepts before initialisation;
         // the pointer is to a live u32 for the duration of the call, which does not keep it.
+        #[allow(unsafe_code)] // FFI: OpenH264's option setter has no safe wrapper.
         unsafe {
             encoder.raw_api().set_option(
                 openh264_sys2::ENCODER_OPTION_TRACE_LEVEL,

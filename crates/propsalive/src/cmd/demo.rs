@@ -84,14 +84,12 @@ pub fn run(args: Args) -> Result<()> {
         0..spec.frames,
         |f, out, m| {
             let name = format!("frame_{:04}.png", f.index);
-            save_png(&out_dir.join("frames").join(&name), w, h, &out.rgba8)
-                .map_err(|e| e.to_string())?;
-            mp4.write_frame(&out.rgba8).map_err(|e| e.to_string())?;
+            save_png(&out_dir.join("frames").join(&name), w, h, &out.rgba8)?;
+            mp4.write_frame(&out.rgba8)?;
             let strip = hstack(&[&f.input.rgba8, &out.rgba8, &f.ground_truth.rgba8], w, h);
-            save_png(&out_dir.join("strip").join(&name), w * 3, h, &strip)
-                .map_err(|e| e.to_string())?;
+            save_png(&out_dir.join("strip").join(&name), w * 3, h, &strip)?;
             if f.index % 2 == 0 {
-                let img = image::RgbaImage::from_raw(w * 3, h, strip).ok_or("strip size")?;
+                let img = image::RgbaImage::from_raw(w * 3, h, strip).context("strip size")?;
                 gif_frames.push(image::imageops::thumbnail(&img, w * 3 / 3, h / 3));
             }
             let pose = out.camera_from_marker.map(|p| p.to_cols_array().to_vec());
@@ -108,10 +106,9 @@ pub fn run(args: Args) -> Result<()> {
             });
             let _ = writeln!(log, "{line}");
             bar.inc(1);
-            Ok(())
+            anyhow::Ok(())
         },
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     bar.finish_and_clear();
     mp4.finish()?;
     pa_model::export::write_atomic(&args.out.join("log.jsonl"), log.as_bytes())?;

@@ -343,9 +343,8 @@ pub fn run(args: Args) -> Result<()> {
                     spec,
                     m.settings,
                     frames.iter().copied(),
-                    |_, _, _| Ok(()),
-                )
-                .map_err(anyhow::Error::msg)?;
+                    |_, _, _| anyhow::Ok(()),
+                )?;
                 seed_of.extend(std::iter::repeat_n(seed, r.len()));
                 all.extend(r);
             }
