@@ -9,63 +9,18 @@ use std::process::Stdio;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{command, files, fresh_root, lock, log, run, stderr, write_prop_and_shot};
-use pa_scene::{Scene, SceneSpec};
+use common::{command, files, lock, log, run, stderr};
 
 const STILLS: u32 = 10;
 const W: u32 = 320;
 const H: u32 = 180;
 
-/// A generated take: stills (named s1.png .. s10.png, so natural order matters), a shot file
-/// and the reference outputs of an uninterrupted run.
-struct Take {
-    root: PathBuf,
-    stills: PathBuf,
-    shot: PathBuf,
-    reference: PathBuf,
-}
+type Take = common::GeneratedTake;
 
 fn take() -> Option<&'static Take> {
     static T: OnceLock<Option<Take>> = OnceLock::new();
-    T.get_or_init(make_take).as_ref()
-}
-
-fn make_take() -> Option<Take> {
-    let mut renderer = match pa_render::Renderer::new() {
-        Ok(r) => r,
-        Err(e) => {
-            println!("skipped: no renderer ({e})");
-            return None;
-        }
-    };
-    let root = fresh_root("run_cli_");
-    let stills = root.join("stills");
-    std::fs::create_dir_all(&stills).expect("mkdir");
-    let spec = SceneSpec {
-        width: W,
-        height: H,
-        frames: STILLS,
-        ..SceneSpec::default()
-    };
-    let scene = Scene::new(spec.clone(), &mut renderer).expect("scene");
-    for i in 0..STILLS {
-        let f = scene.frame(&mut renderer, i).expect("frame");
-        let img = image::RgbaImage::from_raw(W, H, f.input.rgba8).expect("size");
-        img.save(stills.join(format!("s{}.png", i + 1)))
-            .expect("save");
-    }
-    let shot_path = write_prop_and_shot(&root, &spec);
-    drop(renderer);
-
-    let reference = root.join("reference");
-    let out = run(&shot_path, &stills, &reference, &[]);
-    assert!(out.status.success(), "{}", stderr(&out));
-    Some(Take {
-        root,
-        stills,
-        shot: shot_path,
-        reference,
-    })
+    T.get_or_init(|| common::generate_take("run_cli_", STILLS, W, H))
+        .as_ref()
 }
 
 /// The frames of a take: name -> bytes.

@@ -125,3 +125,49 @@ pub fn log(dir: &Path) -> BTreeMap<u64, serde_json::Value> {
     }
     m
 }
+
+/// A generated take of `stills` PNG stills (`s1.png` .. `sN.png`, so natural order matters) of
+/// `width` x `height` in `<prefix><pid>/stills`, the prop and shot file, and the reference output
+/// of an uninterrupted run in `reference/`. None (with a "skipped" line) without a renderer.
+pub struct GeneratedTake {
+    pub root: PathBuf,
+    pub stills: PathBuf,
+    pub shot: PathBuf,
+    pub reference: PathBuf,
+}
+
+pub fn generate_take(prefix: &str, stills: u32, width: u32, height: u32) -> Option<GeneratedTake> {
+    let mut renderer = match pa_render::Renderer::new() {
+        Ok(r) => r,
+        Err(e) => {
+            println!("skipped: no renderer ({e})");
+            return None;
+        }
+    };
+    let root = fresh_root(prefix);
+    let dir = root.join("stills");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let spec = SceneSpec {
+        width,
+        height,
+        frames: stills,
+        ..SceneSpec::default()
+    };
+    let scene = pa_scene::Scene::new(spec.clone(), &mut renderer).expect("scene");
+    for i in 0..stills {
+        let f = scene.frame(&mut renderer, i).expect("frame");
+        let img = image::RgbaImage::from_raw(width, height, f.input.rgba8).expect("size");
+        img.save(dir.join(format!("s{}.png", i + 1))).expect("save");
+    }
+    let shot = write_prop_and_shot(&root, &spec);
+    drop(renderer);
+    let reference = root.join("reference");
+    let o = run(&shot, &dir, &reference, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    Some(GeneratedTake {
+        root,
+        stills: dir,
+        shot,
+        reference,
+    })
+}
