@@ -2,8 +2,6 @@
 //! of blocking, and a tag board with ids past its family's codes or with an id twice is
 //! refused.
 
-use std::path::Path;
-use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
 use glam::DVec2;
@@ -12,31 +10,14 @@ use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
 fn within<T: Send + 'static>(what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    match rx.recv_timeout(Duration::from_secs(20)) {
-        Ok(v) => v,
-        Err(RecvTimeoutError::Timeout) => panic!("{what}: still blocked after 20 s"),
-        Err(RecvTimeoutError::Disconnected) => panic!("{what}: panicked"),
-    }
-}
-
-fn mkfifo(p: &Path) {
-    let ok = std::process::Command::new("mkfifo")
-        .arg(p)
-        .status()
-        .expect("run mkfifo")
-        .success();
-    assert!(ok, "mkfifo {}", p.display());
+    pa_testkit::hostile::within(what, Duration::from_secs(20), f)
 }
 
 #[test]
 fn a_fifo_or_device_given_as_an_image_is_skipped_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
     let fifo = dir.path().join("view.png");
-    mkfifo(&fifo);
+    pa_testkit::hostile::mkfifo(&fifo);
     for path in [fifo, "/dev/zero".into()] {
         let name = path.display().to_string();
         let outcome = within(&name, move || {

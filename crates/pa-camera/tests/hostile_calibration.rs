@@ -5,7 +5,6 @@
 //! [`every_regression_file_is_refused`] loads them all. Large inputs are made here instead.
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
 use pa_camera::calib::{load_calibration, parse_calibration, save_calibration, CalibFormat};
@@ -28,24 +27,7 @@ fn tmpdir(name: &str) -> PathBuf {
 /// Runs `f` on its own thread and fails the test if it does not return within 20 s (a read
 /// that blocks forever on a FIFO must fail the test, not hang it).
 fn within<T: Send + 'static>(what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    match rx.recv_timeout(Duration::from_secs(20)) {
-        Ok(v) => v,
-        Err(RecvTimeoutError::Timeout) => panic!("{what}: still blocked after 20 s"),
-        Err(RecvTimeoutError::Disconnected) => panic!("{what}: panicked"),
-    }
-}
-
-fn mkfifo(p: &Path) {
-    let ok = std::process::Command::new("mkfifo")
-        .arg(p)
-        .status()
-        .expect("run mkfifo")
-        .success();
-    assert!(ok, "mkfifo {}", p.display());
+    pa_testkit::hostile::within(what, Duration::from_secs(20), f)
 }
 
 fn load_err(path: &Path) -> String {
@@ -58,26 +40,7 @@ fn load_err(path: &Path) -> String {
 
 #[test]
 fn every_regression_file_is_refused() {
-    let mut n = 0;
-    for entry in std::fs::read_dir(regressions()).expect("regressions folder") {
-        let path = entry.expect("entry").path();
-        if !path.is_file() {
-            continue;
-        }
-        let msg = load_err(&path);
-        let name = path
-            .file_name()
-            .expect("name")
-            .to_string_lossy()
-            .into_owned();
-        assert!(
-            msg.contains(&name),
-            "{name}: the error must name the file: {msg}"
-        );
-        assert!(!msg.contains("SECRETHASH"), "{name}: leaks the file: {msg}");
-        n += 1;
-    }
-    assert!(n >= 10, "only {n} regression files");
+    pa_testkit::hostile::assert_every_file_refused(&regressions(), 10, load_err);
 }
 
 /// 50,000 nested brackets overflowed the parser's stack (the process aborted).
@@ -165,12 +128,12 @@ fn a_fifo_is_refused_at_once() {
     let d = tmpdir("fifo");
     for name in ["calib.yaml", "calib.toml", "calib.json", "calib"] {
         let fifo = d.join(name);
-        mkfifo(&fifo);
+        pa_testkit::hostile::mkfifo(&fifo);
         let msg = load_err(&fifo);
         assert!(msg.contains(name) && msg.contains("FIFO"), "{msg}");
     }
     let fifo = d.join("out.yaml");
-    mkfifo(&fifo);
+    pa_testkit::hostile::mkfifo(&fifo);
     let model = CameraModel::pinhole(Intrinsics::from_fov_y(1.0, 640, 480).expect("valid"));
     let f = fifo.clone();
     let e = within("save onto a FIFO", move || save_calibration(&model, &f))

@@ -7,7 +7,6 @@
 //! [`every_regression_file_is_refused`] loads them all.
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, RecvTimeoutError};
 use std::time::Duration;
 
 use pa_pipeline::shot::Shot;
@@ -21,15 +20,7 @@ fn regressions() -> PathBuf {
 
 /// Runs `f` on its own thread; fails the test if it does not return within 20 s.
 fn within<T: Send + 'static>(what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    match rx.recv_timeout(Duration::from_secs(20)) {
-        Ok(v) => v,
-        Err(RecvTimeoutError::Timeout) => panic!("{what}: still blocked after 20 s"),
-        Err(RecvTimeoutError::Disconnected) => panic!("{what}: panicked"),
-    }
+    pa_testkit::hostile::within(what, Duration::from_secs(20), f)
 }
 
 fn load_err(path: &Path) -> String {
@@ -42,26 +33,7 @@ fn load_err(path: &Path) -> String {
 
 #[test]
 fn every_regression_file_is_refused() {
-    let mut n = 0;
-    for entry in std::fs::read_dir(regressions()).expect("regressions folder") {
-        let path = entry.expect("entry").path();
-        if !path.is_file() {
-            continue;
-        }
-        let msg = load_err(&path);
-        let name = path
-            .file_name()
-            .expect("name")
-            .to_string_lossy()
-            .into_owned();
-        assert!(
-            msg.contains(&name),
-            "{name}: the error must name the file: {msg}"
-        );
-        assert!(!msg.contains("SECRETHASH"), "{name}: leaks the file: {msg}");
-        n += 1;
-    }
-    assert!(n >= 10, "only {n} regression files");
+    pa_testkit::hostile::assert_every_file_refused(&regressions(), 10, load_err);
 }
 
 /// Every float of the schema: NaN and infinities (and f32 overflow) name the field.

@@ -2,6 +2,7 @@
 //! skinning references, and golden-image comparison ([`golden`]). Only ever a dev-dependency.
 
 pub mod golden;
+pub mod hostile;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

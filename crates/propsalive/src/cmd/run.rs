@@ -321,21 +321,10 @@ fn write_durable_if_changed(path: &Path, bytes: &[u8]) -> Result<()> {
     write_durable(path, bytes)
 }
 
-/// Makes a rename in `path`'s folder durable (best effort).
-fn sync_dir(path: &Path) {
-    if let Some(dir) = path.parent() {
-        if let Ok(d) = std::fs::File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
-}
-
-/// Writes `bytes` to `path` atomically and makes the rename durable.
+/// Writes `bytes` to `path` atomically; `pa_io::write_atomic` also syncs the folder, so the
+/// rename is durable.
 fn write_durable(path: &Path, bytes: &[u8]) -> Result<()> {
-    pa_model::export::write_atomic(path, bytes)
-        .with_context(|| format!("writing {}", path.display()))?;
-    sync_dir(path);
-    Ok(())
+    pa_io::write_atomic(path, bytes).with_context(|| format!("writing {}", path.display()))
 }
 
 pub(crate) fn board_from_shot(shot: &Shot, shot_path: &Path) -> Result<Board> {
@@ -2080,11 +2069,7 @@ fn take_hash(entries: &BTreeMap<usize, Entry>, n: usize) -> String {
 
 /// True when `mp4` is this take's and was made from exactly the frames it holds now.
 fn mp4_is_current(mp4: &Path, out: &Path, hash: &str) -> bool {
-    mp4_is_ours(mp4, out)
-        && pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json")
-            .ok()
-            .and_then(|t| serde_json::from_slice::<Mp4Record>(&t).ok())
-            .is_some_and(|r| r.take_hash == hash)
+    our_mp4_record(mp4, out).is_some_and(|r| r.take_hash == hash)
 }
 
 fn absolute(p: &Path) -> PathBuf {
@@ -2093,16 +2078,16 @@ fn absolute(p: &Path) -> PathBuf {
 
 /// True when `mp4` is the file this take last wrote (same path, size and mtime).
 fn mp4_is_ours(mp4: &Path, out: &Path) -> bool {
-    let Ok(text) = pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json") else {
-        return false;
-    };
-    let Ok(rec) = serde_json::from_slice::<Mp4Record>(&text) else {
-        return false;
-    };
-    let Ok(stamp) = file_stamp(mp4) else {
-        return false;
-    };
-    rec.path == absolute(mp4).display().to_string() && (rec.bytes, rec.mtime_ns) == stamp
+    our_mp4_record(mp4, out).is_some()
+}
+
+/// The take's `mp4.json`, when `mp4` is the file it records (same path, size and mtime).
+fn our_mp4_record(mp4: &Path, out: &Path) -> Option<Mp4Record> {
+    let text = pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json").ok()?;
+    let rec = serde_json::from_slice::<Mp4Record>(&text).ok()?;
+    let stamp = file_stamp(mp4).ok()?;
+    (rec.path == absolute(mp4).display().to_string() && (rec.bytes, rec.mtime_ns) == stamp)
+        .then_some(rec)
 }
 
 /// Refuses an `--mp4` target that is a folder, or an existing file that is not this take's,
@@ -2206,8 +2191,8 @@ fn write_mp4(
         }
         writer.write_frame(current.as_raw())?;
     }
+    // `finish` renames the file into place and syncs its folder.
     let summary = writer.finish()?;
-    sync_dir(mp4);
     let (bytes, mtime_ns) = file_stamp(mp4)?;
     let rec = Mp4Record {
         path: absolute(mp4).display().to_string(),
