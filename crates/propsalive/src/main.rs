@@ -11,7 +11,6 @@
 mod output;
 mod cmd;
 mod logger;
-mod plot;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

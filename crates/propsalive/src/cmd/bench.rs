@@ -25,7 +25,6 @@
 //! spread over the set would cost more in the fill and the shading (their union covers more
 //! pixels) and less in rasterisation.
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -33,10 +32,11 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, Fill, RenderPath, StageTimings};
 use pa_render::Renderer;
+use pa_report::bench::{fps, BenchReport, BenchRow};
+use pa_report::stats::{mean, stat};
 use pa_scene::eval::{measure, pipeline_for};
 use pa_scene::scene::marker_from_prop;
 use pa_scene::{PropSpec, Scene, SceneFrame, SceneSpec};
-use serde_json::{json, Value};
 
 /// The long help of `propsalive bench` (what is timed and what "N props" means).
 pub const LONG_ABOUT: &str = "\
@@ -380,60 +380,6 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-/// Median and 95th percentile (nearest rank) of `v`.
-#[derive(Debug, Clone, Copy)]
-struct Stat {
-    median: f64,
-    p95: f64,
-}
-
-fn stat(mut v: Vec<f64>) -> Stat {
-    if v.is_empty() {
-        return Stat {
-            median: f64::NAN,
-            p95: f64::NAN,
-        };
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    let median = if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    };
-    let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
-    Stat {
-        median,
-        p95: v[rank - 1],
-    }
-}
-
-/// The results of one configuration.
-struct Row {
-    config: Config,
-    actual_vertices: usize,
-    frames: usize,
-    tracked: usize,
-    stages: Vec<(&'static str, Stat)>,
-    gpu_wait: Stat,
-    end_to_end: Stat,
-    psnr_prop: Option<f64>,
-    peak_rss_mb: Option<f64>,
-    rss_start_mb: Option<f64>,
-    peak_scope: &'static str,
-    held_mb: f64,
-    seconds: f64,
-}
-
-const STAGES: [&str; 6] = [
-    "track",
-    "animate",
-    "texture",
-    "diminish",
-    "composite",
-    "readback",
-];
-
 /// A memory figure of this process from /proc/self/status in MiB (Linux): `VmHWM` (peak
 /// resident set) or `VmRSS` (current).
 fn status_mib(field: &str) -> Option<f64> {
@@ -481,7 +427,12 @@ fn cpu_description() -> (String, usize) {
     (model, cores)
 }
 
-fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str) -> Result<Row> {
+fn run_config(
+    renderer: &mut Renderer,
+    plan: &Plan,
+    config: Config,
+    label: &str,
+) -> Result<BenchRow> {
     let started = Instant::now();
     let total = plan.warmup + plan.frames;
     let spec = SceneSpec {
@@ -574,75 +525,25 @@ fn run_config(renderer: &mut Renderer, plan: &Plan, config: Config, label: &str)
         ("composite", col(|s| s.composite)),
         ("readback", col(|s| s.readback)),
     ];
-    Ok(Row {
-        config,
+    Ok(BenchRow {
+        render_path: config.path.name(),
+        width: config.width,
+        height: config.height,
+        requested_vertices: config.vertices,
         actual_vertices,
+        props: config.props,
         frames: samples.len(),
         tracked: samples.iter().filter(|s| s.tracked).count(),
         stages,
         gpu_wait: col(|s| s.gpu_wait),
         end_to_end: col(|s| s.end_to_end),
-        psnr_prop: pa_scene::eval::mean(psnr),
+        psnr_prop: mean(psnr),
         peak_rss_mb: peak,
         rss_start_mb: rss_start,
         peak_scope,
         held_mb: held_bytes as f64 / (1024.0 * 1024.0),
         seconds: started.elapsed().as_secs_f64(),
     })
-}
-
-fn cell(s: Stat) -> String {
-    format!("{:.1} / {:.1}", s.median, s.p95)
-}
-
-fn fps(s: Stat) -> f64 {
-    1000.0 / s.median
-}
-
-fn stat_json(s: Stat) -> Value {
-    json!({"median": s.median, "p95": s.p95})
-}
-
-fn table(rows: &[Row]) -> String {
-    let mut t = String::new();
-    let _ = writeln!(
-        t,
-        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |"
-    );
-    let _ = writeln!(
-        t,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-    );
-    for r in rows {
-        let c = r.config;
-        let _ = write!(
-            t,
-            "| {} | {}x{} | {} | {} |",
-            c.path.name(),
-            c.width,
-            c.height,
-            r.actual_vertices,
-            c.props
-        );
-        for (_, s) in &r.stages {
-            let _ = write!(t, " {} |", cell(*s));
-        }
-        let _ = writeln!(
-            t,
-            " {} | {:.1} | {} | {} | {}/{} |",
-            cell(r.end_to_end),
-            fps(r.end_to_end),
-            r.psnr_prop
-                .map(|p| format!("{p:.2}"))
-                .unwrap_or_else(|| "-".into()),
-            r.peak_rss_mb
-                .map(|m| format!("{m:.0}"))
-                .unwrap_or_else(|| "n/a".into()),
-            r.tracked,
-            r.frames
-        );
-    }
-    t
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -689,99 +590,24 @@ pub fn run(args: Args) -> Result<()> {
     }
     let total_s = started.elapsed().as_secs_f64();
     let load_end = load_average();
-    let load = |l: Option<f64>| l.map_or_else(|| "n/a".to_string(), |l| format!("{l:.2}"));
 
-    let props_meaning = "N props = one ArPipeline drawing N props a frame (add_prop): track, \
-                         fill and composite once, pose and draw per prop; copies of the bust at \
-                         the same place (worst-case overdraw; the output and PSNR are the \
-                         single prop's)";
-    let readback_meaning = "readback = mapping GPU results and copying them to CPU memory \
-                            (unpad, depth decode), taken out of texture; texture includes \
-                            waiting for the GPU (gpu_wait), which on a software rasteriser is \
-                            the rasterisation itself";
-    let mut out = String::new();
-    let _ = writeln!(out, "# propsalive bench\n");
-    let _ = writeln!(out, "- adapter: {adapter}");
-    let _ = writeln!(out, "- backend: {backend}");
-    let _ = writeln!(
-        out,
-        "- CPU: {cpu}, {cores} cores available; 1-minute load average {} at the start, {} at \
-         the end (other work on the machine slows a software rasteriser a lot)",
-        load(load_start),
-        load(load_end)
-    );
-    let _ = writeln!(out, "- method: {}", plan.method.describe());
-    let _ = writeln!(
-        out,
-        "- render path: cpu = our rasteriser (pa-raster), gpu = wgpu on the adapter above; \
-         the pipeline picks {} on this machine",
-        auto.name()
-    );
-    let _ = writeln!(
-        out,
-        "- frames: {} timed after {} warm-up per configuration; times in ms, median / p95; \
-         fps = 1000 / median end-to-end",
-        plan.frames, plan.warmup
-    );
-    let _ = writeln!(out, "- {props_meaning}");
-    let _ = writeln!(out, "- {readback_meaning}");
-    let _ = writeln!(
-        out,
-        "- peak RSS: the process's high-water mark during the timed loop, including the frames \
-         the bench holds (input, ground truth, output)\n"
-    );
-    out.push_str(&table(&rows));
-
-    let json_rows: Vec<Value> = rows
-        .iter()
-        .map(|r| {
-            let stages: serde_json::Map<String, Value> = r
-                .stages
-                .iter()
-                .map(|(n, s)| (n.to_string(), stat_json(*s)))
-                .collect();
-            json!({
-                "render_path": r.config.path.name(),
-                "width": r.config.width,
-                "height": r.config.height,
-                "requested_vertices": r.config.vertices,
-                "vertices": r.actual_vertices,
-                "props": r.config.props,
-                "frames": r.frames,
-                "tracked_frames": r.tracked,
-                "stages_ms": stages,
-                "gpu_wait_ms": stat_json(r.gpu_wait),
-                "end_to_end_ms": stat_json(r.end_to_end),
-                "fps": fps(r.end_to_end),
-                "prop_psnr_db": r.psnr_prop,
-                "peak_rss_mib": r.peak_rss_mb,
-                "rss_before_timed_loop_mib": r.rss_start_mb,
-                "peak_rss_scope": r.peak_scope,
-                "held_frames_mib": r.held_mb,
-                "seconds": r.seconds,
-            })
-        })
-        .collect();
-    let doc = json!({
-        "adapter": adapter,
-        "backend": backend,
-        "default_render_path": auto.name(),
-        "cpu": cpu,
-        "cores": cores,
-        "load_average_start": load_start,
-        "load_average_end": load_end,
-        "method": plan.method.describe(),
-        "frames": plan.frames,
-        "warmup": plan.warmup,
-        "seed": plan.seed,
-        "stages": STAGES,
-        "props_meaning": props_meaning,
-        "readback_meaning": readback_meaning,
-        "total_seconds": total_s,
-        "configs": json_rows,
-    });
-    pa_model::export::write_atomic(&plan.json, serde_json::to_string_pretty(&doc)?.as_bytes())
-        .with_context(|| format!("writing {}", plan.json.display()))?;
+    let report = BenchReport {
+        adapter,
+        backend,
+        cpu,
+        cores,
+        load_start,
+        load_end,
+        method: plan.method.describe(),
+        auto_path: auto.name(),
+        frames: plan.frames,
+        warmup: plan.warmup,
+        seed: plan.seed,
+        total_seconds: total_s,
+        rows,
+    };
+    let out = report.markdown();
+    report.write_json(&plan.json)?;
     out!("{out}");
     outln!("\nwrote {} ({:.0} s in all)", plan.json.display(), total_s);
     Ok(())
@@ -821,15 +647,5 @@ mod tests {
         }));
         let one = axes(&[(160, 120)], &[2_000], &[1, 2]);
         assert_eq!(one.len(), 2);
-    }
-
-    #[test]
-    fn percentiles() {
-        let s = stat((1..=20).map(f64::from).collect());
-        assert_eq!(s.median, 10.5);
-        assert_eq!(s.p95, 19.0);
-        let s = stat(vec![3.0]);
-        assert_eq!((s.median, s.p95), (3.0, 3.0));
-        assert!(stat(Vec::new()).median.is_nan());
     }
 }
