@@ -54,16 +54,15 @@ fn rows() -> Vec<MethodRow> {
 }
 
 fn curves() -> Vec<Curve> {
-    let point = |frame: u32, rotation_deg: f64, displacement_h: f64, psnr: Option<f64>| {
-        CurvePoint {
+    let point =
+        |frame: u32, rotation_deg: f64, displacement_h: f64, psnr: Option<f64>| CurvePoint {
             seed: 1,
             frame,
             key: 0,
             rotation_deg,
             displacement_h,
             psnr_prop: psnr,
-        }
-    };
+        };
     vec![
         Curve {
             name: "paper (live)".into(),
@@ -76,7 +75,10 @@ fn curves() -> Vec<Curve> {
         },
         Curve {
             name: "ours: a & b".into(),
-            points: vec![point(0, 1.0, 0.01, Some(31.0)), point(24, 30.0, 0.1, Some(27.0))],
+            points: vec![
+                point(0, 1.0, 0.01, Some(31.0)),
+                point(24, 30.0, 0.1, Some(27.0)),
+            ],
         },
     ]
 }
@@ -88,7 +90,13 @@ fn stats_values() {
     assert_eq!(median(v), Some(2.0));
     let s = stat(vec![4.0, 1.0, 3.0, 2.0]);
     assert_eq!((s.median, s.p95), (2.5, 4.0));
-    assert_eq!(fps(Stat { median: 8.0, p95: 9.0 }), 125.0);
+    assert_eq!(
+        fps(Stat {
+            median: 8.0,
+            p95: 9.0
+        }),
+        125.0
+    );
 }
 
 #[test]
@@ -199,7 +207,9 @@ fn eval_write() {
     // A folder in the way: the error names the plot being written.
     let blocked = tempfile::tempdir().expect("tempdir");
     std::fs::create_dir(blocked.path().join("methods.svg")).expect("mkdir");
-    let e = files.write(blocked.path()).expect_err("a folder is not replaced");
+    let e = files
+        .write(blocked.path())
+        .expect_err("a folder is not replaced");
     let shown = e.to_string();
     assert_eq!(
         shown,
@@ -208,7 +218,9 @@ fn eval_write() {
     // report.md in the way: pa-io's error as it is (no "writing" before it).
     let blocked = tempfile::tempdir().expect("tempdir");
     std::fs::create_dir(blocked.path().join("report.md")).expect("mkdir");
-    let e = files.write(blocked.path()).expect_err("a folder is not replaced");
+    let e = files
+        .write(blocked.path())
+        .expect_err("a folder is not replaced");
     assert_eq!(
         e.to_string(),
         format!(
