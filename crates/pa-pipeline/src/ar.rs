@@ -459,6 +459,14 @@ impl ArPipeline {
         })
     }
 
+    /// Forgets the tracker's history (state, filter, search region) before a frame that
+    /// starts a new sequence; nothing without a tracker.
+    pub fn reset_tracker(&mut self) {
+        if let Some(tracker) = &mut self.tracker {
+            tracker.reset();
+        }
+    }
+
     /// The renderer of the texture stage ([`RenderPath::auto`] unless set).
     pub fn render_path(&self) -> RenderPath {
         self.render_path

@@ -185,6 +185,49 @@ pub enum VideoError {
         detail: String,
     },
 
+    /// A still could not be used (unreadable, truncated, too large...); the message is the
+    /// still's own and names the file.
+    #[error(transparent)]
+    Still(#[from] crate::still::StillError),
+
+    /// An input is neither a folder of stills, a video file nor a camera (a FIFO, a
+    /// device, a socket...).
+    #[error(
+        "{path}: is {kind}, not a folder of stills, a video file or a camera (camera:/dev/videoN)"
+    )]
+    NotAnInput {
+        /// The input as given.
+        path: PathBuf,
+        /// What it is, in words (`"a FIFO"`).
+        kind: String,
+    },
+
+    /// An input does not exist.
+    #[error(
+        "{path}: no such file or folder (give a folder of stills, a video file, or camera:/dev/videoN)"
+    )]
+    NoSuchInput {
+        /// The input as given.
+        path: PathBuf,
+    },
+
+    /// A folder of stills holds no still.
+    #[error("{path}: no images (.png, .jpg, .jpeg, .tif, .tiff) in this folder")]
+    NoStills {
+        /// The folder.
+        path: PathBuf,
+    },
+
+    /// A folder of stills cannot be listed.
+    #[error("reading folder {path}")]
+    ReadFolder {
+        /// The folder.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+
     /// Any other failure talking to the camera.
     #[error("camera {device}: cannot {action}: {source}")]
     Device {

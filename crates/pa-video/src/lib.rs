@@ -17,6 +17,9 @@
 //!   camera disappears mid-take. Without the feature, [`Camera::open`] returns
 //!   [`VideoError::FeatureDisabled`].
 //! * [`FrameSource`]: the common "next frame" interface of files and cameras.
+//! * [`source`]: the inputs of the commands: parsing an input (folder of stills, video file,
+//!   camera), stills in natural order, and the stills, video and camera sources with one
+//!   frame type that says whether a frame starts a new sequence (the tracker policy).
 //!
 //! # Conventions
 //! * Frames are RGBA8, sRGB-encoded, row-major, `width * 4` bytes a row, no padding; alpha is
@@ -44,6 +47,7 @@ mod ffmpeg;
 pub mod h264;
 pub mod mp4;
 mod reader;
+pub mod source;
 pub mod still;
 mod writer;
 

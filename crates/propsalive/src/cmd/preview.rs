@@ -14,7 +14,9 @@
 //! folder of stills, still `i` showing animation frame `i` as `propsalive run` pairs them;
 //! `--input VIDEO` a video file, frame `i` showing animation frame `i` the same way;
 //! `--input camera:/dev/videoN` a live camera (the `v4l` feature), tracked as a video
-//! (temporal filter), the animation advancing one frame per camera frame while playing.
+//! (temporal filter), the animation advancing one frame per camera frame while playing. The
+//! tracker follows `pa_video::source`'s policy: reset before each still (a still is tracked
+//! on its own, as `propsalive run` does), kept across the frames of a video or a camera.
 //!
 //! Decisions:
 //! - **No frame queue.** One thread: take the source's newest frame, run the pipeline, draw,
@@ -467,6 +469,11 @@ impl Preview {
         };
         let anim_time_s = self.state.anim_frame as f32 / self.fps;
         let key_time_s = want.key_frame as f32 / self.fps;
+        // The tracker policy (`pa_video::source`): reset before each still, kept across video
+        // and camera frames.
+        if frame.starts_sequence {
+            self.pipeline.reset_tracker();
+        }
         let out = self.pipeline.process(
             &mut self.renderer,
             &frame.rgba8,

@@ -91,8 +91,11 @@ use pa_pipeline::shot::Shot;
 use pa_render::Renderer;
 use pa_track::board::BoardTag;
 use pa_track::{Board, DetectorConfig, TagFamily, TrackTarget, Tracker, TrackerConfig};
+use pa_video::source::{
+    CameraSource, Next as SourceNext, Pixels, Source, SourceFrame, StillsSource, VideoSource,
+};
 use pa_video::still::StillBudget;
-use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, VideoError, VideoReader};
+use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, VideoReader};
 use serde::{Deserialize, Serialize};
 
 #[derive(clap::Args)]
@@ -356,55 +359,13 @@ pub(crate) fn board_from_shot(shot: &Shot, shot_path: &Path) -> Result<Board> {
 
 // --- input ---------------------------------------------------------------------------------
 
-/// What `--input` names.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(crate) enum InputSpec {
-    /// A folder of stills.
-    Folder(PathBuf),
-    /// A video file.
-    Video(PathBuf),
-    /// A live camera (a Video4Linux device).
-    Camera(PathBuf),
-}
+/// What `--input` names (`pa_video::source`).
+pub(crate) use pa_video::source::InputSpec;
 
-/// Reads `--input`: an existing folder is a folder of stills; `camera:DEVICE`,
-/// `camera:N` (= /dev/videoN), `camera` (= /dev/video0) or a `/dev/video*` path is a camera;
-/// any other existing file is a video (the reader tells what it is).
+/// Reads `--input` (`pa_video::source::parse_input`): a folder of stills, a video file or a
+/// camera; the message of a bad input starts with `--input`.
 pub(crate) fn parse_input(input: &Path) -> Result<InputSpec> {
-    if input.is_dir() {
-        return Ok(InputSpec::Folder(input.to_path_buf()));
-    }
-    let s = input.to_string_lossy();
-    if let Some(rest) = s.strip_prefix("camera:") {
-        let device = if rest.is_empty() {
-            "/dev/video0".to_string()
-        } else if rest.bytes().all(|b| b.is_ascii_digit()) {
-            format!("/dev/video{rest}")
-        } else {
-            rest.to_string()
-        };
-        return Ok(InputSpec::Camera(PathBuf::from(device)));
-    }
-    if s == "camera" && !input.exists() {
-        return Ok(InputSpec::Camera(PathBuf::from("/dev/video0")));
-    }
-    if s.starts_with("/dev/video") {
-        return Ok(InputSpec::Camera(input.to_path_buf()));
-    }
-    if input.is_file() {
-        return Ok(InputSpec::Video(input.to_path_buf()));
-    }
-    if let Ok(meta) = std::fs::metadata(input) {
-        bail!(
-            "--input {}: is {}, not a folder of stills, a video file or a camera (camera:/dev/videoN)",
-            input.display(),
-            pa_io::kind_of(&meta)
-        );
-    }
-    bail!(
-        "--input {}: no such file or folder (give a folder of stills, a video file, or camera:/dev/videoN)",
-        input.display()
-    )
+    pa_video::source::parse_input(input).map_err(|e| anyhow::anyhow!("--input {e}"))
 }
 
 /// The shot's camera at a frame size: its calibration (scaled to the size when the aspect
@@ -475,8 +436,7 @@ pub(crate) fn camera_request(
 /// Opens a camera at the shot's rate (the `v4l` feature; without it, `pa-video`'s error
 /// naming the feature).
 pub(crate) fn open_camera(device: &Path, size: (u32, u32), fps: f32) -> Result<pa_video::Camera> {
-    let rate = (fps.round() as u32).clamp(1, 1000);
-    Ok(pa_video::Camera::open(device, size.0, size.1, rate)?)
+    Ok(pa_video::source::open_camera(device, size, fps)?)
 }
 
 /// The passes asked for with `--passes`.
@@ -533,7 +493,7 @@ enum SourceSpec {
     Stills(Vec<PathBuf>),
     Video {
         reader: VideoReader,
-        name: String,
+        path: PathBuf,
         stamp: (u64, u64),
     },
     Camera(pa_video::Camera),
@@ -621,11 +581,6 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
             let reader = VideoReader::open(&path)?;
             let info = reader.info();
             let (width, height) = (info.width, info.height);
-            let name = path
-                .file_name()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned();
             let desc = pa_video::FrameSource::describe(&reader);
             let stamp = file_stamp(&path)?;
             if let Some(f) = info.fps {
@@ -641,7 +596,7 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
             (
                 SourceSpec::Video {
                     reader,
-                    name,
+                    path,
                     stamp,
                 },
                 "frame",
@@ -762,22 +717,15 @@ fn check_no_overlap(input: &InputSpec, out: &Path, mp4: Option<&Path>) -> Result
 
 // --- frame sources -------------------------------------------------------------------------
 
-/// The pixels of one input frame.
-enum Pixels {
-    Decoded(image::DynamicImage),
-    /// A still not read yet (read only if the frame is to be processed).
-    Deferred(PathBuf),
-    /// The frame could not be read: why.
-    Unreadable(String),
-}
-
-/// One input frame of a take.
+/// One input frame of a take: the source's frame (`pa_video::source`) with what the log
+/// records.
 struct InputFrame {
     pub index: usize,
     /// What the log records as `input`.
     pub name: String,
     /// (bytes, mtime ns) the log records.
     pub stamp: (u64, u64),
+    /// A still is read only if the frame is to be processed.
     pub pixels: Pixels,
 }
 
@@ -791,7 +739,8 @@ enum Next {
 }
 
 /// The input of a take, frame after frame, in index order: a folder of stills, a video file,
-/// or a camera. The run loop only sees this, so it can be tested with a fake.
+/// or a camera (`pa_video::source`'s sources, with the identity the log records). The run
+/// loop only sees this, so it can be tested with a fake.
 trait TakeSource {
     /// Frames the source holds, when known (a camera: `None`).
     fn len(&self) -> Option<usize>;
@@ -805,130 +754,95 @@ trait TakeSource {
     fn next(&mut self) -> Result<Next>;
 }
 
-struct StillsSource {
-    stills: Vec<PathBuf>,
-    names: Vec<String>,
-    stamps: Vec<(u64, u64)>,
-    next: usize,
+/// The source's next frame, with its stamp: `None` at the end or when the source is lost.
+fn next_of(source: &mut dyn Source) -> Result<std::result::Result<SourceFrame, Next>> {
+    Ok(match source.next()? {
+        SourceNext::Frame(f) => Ok(f),
+        SourceNext::End => Err(Next::End),
+        SourceNext::Lost(e) => Err(Next::Lost(e.to_string())),
+    })
 }
 
-impl StillsSource {
+/// A folder of stills: each still's file name and stamp is its identity.
+struct TakeStills {
+    source: StillsSource,
+    stamps: Vec<(u64, u64)>,
+}
+
+impl TakeStills {
     fn new(stills: Vec<PathBuf>) -> Result<Self> {
-        let mut names = Vec::with_capacity(stills.len());
-        let mut stamps = Vec::with_capacity(stills.len());
-        for p in &stills {
-            names.push(
-                p.file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned(),
-            );
-            stamps.push(file_stamp(p)?);
-        }
+        let stamps = stills
+            .iter()
+            .map(|p| file_stamp(p))
+            .collect::<Result<_>>()?;
         Ok(Self {
-            stills,
-            names,
+            source: StillsSource::new(stills),
             stamps,
-            next: 0,
         })
     }
 }
 
-impl TakeSource for StillsSource {
+impl TakeSource for TakeStills {
     fn len(&self) -> Option<usize> {
-        Some(self.stills.len())
+        self.source.frame_count()
     }
     fn identity(&self, index: usize) -> Option<(String, (u64, u64))> {
-        Some((self.names.get(index)?.clone(), *self.stamps.get(index)?))
+        Some((self.source.name(index)?, *self.stamps.get(index)?))
     }
     fn next(&mut self) -> Result<Next> {
-        let i = self.next;
-        let Some(path) = self.stills.get(i) else {
-            return Ok(Next::End);
+        let f = match next_of(&mut self.source)? {
+            Ok(f) => f,
+            Err(next) => return Ok(next),
         };
-        self.next += 1;
         Ok(Next::Frame(InputFrame {
-            index: i,
-            name: self.names[i].clone(),
-            stamp: self.stamps[i],
-            pixels: Pixels::Deferred(path.clone()),
+            index: f.index,
+            stamp: self.stamps[f.index],
+            name: f.name,
+            pixels: f.pixels,
         }))
     }
 }
 
-/// Decode errors in a row after which a video is given up (a file that is damaged through).
-const MAX_VIDEO_ERRORS_IN_ROW: usize = 25;
-
-/// A video file: frame `i` of the video (presentation order) is still `i`.
-struct VideoSource<S: pa_video::FrameSource> {
-    reader: S,
-    name: String,
+/// A video file: frame `i` of the video (presentation order) is still `i`; the video file's
+/// name and stamp are the identity of every frame.
+struct TakeVideo<S: pa_video::FrameSource> {
+    source: VideoSource<S>,
     stamp: (u64, u64),
-    count: Option<usize>,
-    next_index: usize,
-    errors_in_row: usize,
 }
 
-impl<S: pa_video::FrameSource> TakeSource for VideoSource<S> {
+impl<S: pa_video::FrameSource> TakeSource for TakeVideo<S> {
     fn len(&self) -> Option<usize> {
-        self.count
+        self.source.frame_count()
     }
     fn identity(&self, index: usize) -> Option<(String, (u64, u64))> {
-        match self.count {
-            Some(n) if index < n => Some((self.name.clone(), self.stamp)),
+        match self.source.frame_count() {
+            Some(n) if index < n => Some((self.source.name().to_string(), self.stamp)),
             _ => None,
         }
     }
     fn next(&mut self) -> Result<Next> {
-        let index = self.next_index;
-        let pixels = match self.reader.next_frame() {
-            Ok(Some(f)) => {
-                self.errors_in_row = 0;
-                match image::RgbaImage::from_raw(f.width, f.height, f.rgba) {
-                    Some(img) => Pixels::Decoded(image::DynamicImage::ImageRgba8(img)),
-                    None => Pixels::Unreadable(format!(
-                        "the decoder returned a {}x{} frame with the wrong number of bytes",
-                        f.width, f.height
-                    )),
-                }
-            }
-            Ok(None) => {
-                // The frames really in the file (the container's count may differ).
-                self.count = Some(index);
-                return Ok(Next::End);
-            }
-            Err(e) if e.is_source_lost() => return Ok(Next::Lost(e.to_string())),
-            // One damaged frame: logged and skipped; the reader goes on with the next one.
-            Err(e @ (VideoError::Decode { .. } | VideoError::Corrupt { .. }))
-                if self.errors_in_row < MAX_VIDEO_ERRORS_IN_ROW =>
-            {
-                self.errors_in_row += 1;
-                Pixels::Unreadable(e.to_string())
-            }
-            Err(e) => return Err(e.into()),
+        let f = match next_of(&mut self.source)? {
+            Ok(f) => f,
+            Err(next) => return Ok(next),
         };
-        self.next_index += 1;
-        if self.count.is_some_and(|n| self.next_index > n) {
-            self.count = Some(self.next_index);
-        }
         Ok(Next::Frame(InputFrame {
-            index,
-            name: self.name.clone(),
+            index: f.index,
+            name: f.name,
             stamp: self.stamp,
-            pixels,
+            pixels: f.pixels,
         }))
     }
 }
 
 /// A live camera: every captured frame is saved as `inputs/NNNNNN.png` (atomically, before it
 /// is processed) and appended to the take.
-struct CameraSource<S: pa_video::FrameSource> {
-    camera: S,
+struct TakeCamera<S: pa_video::FrameSource> {
+    source: CameraSource<S>,
     inputs_dir: PathBuf,
     next_index: usize,
 }
 
-impl<S: pa_video::FrameSource> TakeSource for CameraSource<S> {
+impl<S: pa_video::FrameSource> TakeSource for TakeCamera<S> {
     fn len(&self) -> Option<usize> {
         None
     }
@@ -939,20 +853,29 @@ impl<S: pa_video::FrameSource> TakeSource for CameraSource<S> {
         true
     }
     fn next(&mut self) -> Result<Next> {
-        let f = match self.camera.next_frame() {
-            Ok(Some(f)) => f,
-            Ok(None) => return Ok(Next::End),
-            Err(e) if e.is_source_lost() => return Ok(Next::Lost(e.to_string())),
-            Err(e) => return Err(e.into()),
+        let f = match next_of(&mut self.source)? {
+            Ok(SourceFrame {
+                pixels: Pixels::Frame(f),
+                ..
+            }) => f,
+            Ok(_) => bail!("{}: not a camera frame", self.source.describe()),
+            Err(next) => return Ok(next),
         };
         let index = self.next_index;
         self.next_index += 1;
-        let img = image::RgbaImage::from_raw(f.width, f.height, f.rgba).with_context(|| {
+        let pa_video::Frame {
+            index: captured,
+            pts,
+            width,
+            height,
+            rgba,
+        } = f;
+        let img = image::RgbaImage::from_raw(width, height, rgba).with_context(|| {
             format!(
                 "{}: a {}x{} frame with the wrong number of bytes",
-                self.camera.describe(),
-                f.width,
-                f.height
+                self.source.describe(),
+                width,
+                height
             )
         })?;
         let img = image::DynamicImage::ImageRgba8(img);
@@ -962,13 +885,37 @@ impl<S: pa_video::FrameSource> TakeSource for CameraSource<S> {
         image::DynamicImage::ImageRgb8(img.to_rgb8())
             .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
         write_durable(&path, &png)?;
+        let f = pa_video::Frame {
+            index: captured,
+            pts,
+            width,
+            height,
+            rgba: img.into_rgba8().into_raw(),
+        };
         let stamp = file_stamp(&path)?;
         Ok(Next::Frame(InputFrame {
             index,
             name,
             stamp,
-            pixels: Pixels::Decoded(img),
+            pixels: Pixels::Frame(f),
         }))
+    }
+}
+
+/// A frame's pixels as an image, or why it cannot be used.
+fn decode_pixels(pixels: Pixels) -> std::result::Result<image::DynamicImage, String> {
+    match pixels {
+        Pixels::Frame(f) => match image::RgbaImage::from_raw(f.width, f.height, f.rgba) {
+            Some(img) => Ok(image::DynamicImage::ImageRgba8(img)),
+            None => Err(format!(
+                "the decoder returned a {}x{} frame with the wrong number of bytes",
+                f.width, f.height
+            )),
+        },
+        Pixels::Still(path) => {
+            pa_video::still::read_still(&path, &StillBudget::default()).map_err(|e| e.to_string())
+        }
+        Pixels::Unreadable(e) => Err(e.to_string()),
     }
 }
 
@@ -1577,12 +1524,7 @@ fn run_take(
         let name = input.name.clone();
         let anim_frame = (i / take.exposure as usize) as u32;
         let mut entry = take.new_entry(&input, anim_frame);
-        let decoded: std::result::Result<image::DynamicImage, String> = match input.pixels {
-            Pixels::Decoded(img) => Ok(img),
-            Pixels::Deferred(path) => pa_video::still::read_still(&path, &StillBudget::default())
-                .map_err(|e| e.to_string()),
-            Pixels::Unreadable(e) => Err(e),
-        };
+        let decoded = decode_pixels(input.pixels);
         let img = match decoded {
             Ok(img) if (img.width(), img.height()) != (take.width, take.height) => {
                 o.skipped_size += 1;
@@ -1798,20 +1740,16 @@ pub fn run(args: Args) -> Result<()> {
 
     let unit = cfg.unit;
     let mut source: Box<dyn TakeSource> = match spec {
-        SourceSpec::Stills(stills) => Box::new(StillsSource::new(stills)?),
+        SourceSpec::Stills(stills) => Box::new(TakeStills::new(stills)?),
         SourceSpec::Video {
             reader,
-            name,
+            path,
             stamp,
         } => {
             let count = reader.info().frame_count.map(|c| c as usize);
-            Box::new(VideoSource {
-                reader,
-                name,
+            Box::new(TakeVideo {
+                source: VideoSource::new(reader, &path, count),
                 stamp,
-                count,
-                next_index: 0,
-                errors_in_row: 0,
             })
         }
         SourceSpec::Camera(camera) => {
@@ -1824,8 +1762,8 @@ pub fn run(args: Args) -> Result<()> {
                     next_index - 1
                 );
             }
-            Box::new(CameraSource {
-                camera,
+            Box::new(TakeCamera {
+                source: CameraSource::new(camera),
                 inputs_dir: args.out.join("inputs"),
                 next_index,
             })
@@ -2223,7 +2161,7 @@ fn write_mp4(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use pa_video::{Frame, Timestamp};
+    use pa_video::{Frame, Timestamp, VideoError};
 
     /// A fake live camera: `frames` frames, then "disconnected" once, then nothing.
     struct FakeCamera {
@@ -2403,12 +2341,12 @@ mod tests {
     fn a_lost_camera_ends_the_take_cleanly_and_keeps_it() {
         let dir = tempfile::tempdir().expect("tmp");
         let mut take = take_in(dir.path(), all_passes(), "frame");
-        let mut source = CameraSource {
-            camera: FakeCamera {
+        let mut source = TakeCamera {
+            source: CameraSource::new(FakeCamera {
                 frames: 3,
                 given: 0,
                 lost: false,
-            },
+            }),
             inputs_dir: dir.path().join("inputs"),
             next_index: 0,
         };
@@ -2494,12 +2432,12 @@ mod tests {
         assert!(check_mp4_target(&mp4, dir.path(), true).is_ok());
 
         // The camera keeps going after the take's last index on the next run.
-        let mut source = CameraSource {
-            camera: FakeCamera {
+        let mut source = TakeCamera {
+            source: CameraSource::new(FakeCamera {
                 frames: 2,
                 given: 0,
                 lost: false,
-            },
+            }),
             inputs_dir: dir.path().join("inputs"),
             next_index: 3,
         };
@@ -2526,17 +2464,17 @@ mod tests {
     fn a_damaged_video_frame_is_skipped_and_logged() {
         let dir = tempfile::tempdir().expect("tmp");
         let mut take = take_in(dir.path(), PassSet::default(), "frame");
-        let mut source = VideoSource {
-            reader: FakeVideo {
-                frames: 5,
-                bad: vec![2],
-                at: 0,
-            },
-            name: "clip.mp4".into(),
+        let mut source = TakeVideo {
+            source: VideoSource::new(
+                FakeVideo {
+                    frames: 5,
+                    bad: vec![2],
+                    at: 0,
+                },
+                Path::new("clip.mp4"),
+                Some(5),
+            ),
             stamp: (1000, 7),
-            count: Some(5),
-            next_index: 0,
-            errors_in_row: 0,
         };
         let stop = AtomicBool::new(false);
         let mut processor = FakeProcessor {
@@ -2599,17 +2537,17 @@ mod tests {
         static STOP_FLAG: AtomicBool = AtomicBool::new(false);
         let dir = tempfile::tempdir().expect("tmp");
         let mut take = take_in(dir.path(), PassSet::default(), "frame");
-        let mut source = VideoSource {
-            reader: FakeVideo {
-                frames: 6,
-                bad: vec![],
-                at: 0,
-            },
-            name: "clip.mp4".into(),
+        let mut source = TakeVideo {
+            source: VideoSource::new(
+                FakeVideo {
+                    frames: 6,
+                    bad: vec![],
+                    at: 0,
+                },
+                Path::new("clip.mp4"),
+                Some(6),
+            ),
             stamp: (1, 1),
-            count: Some(6),
-            next_index: 0,
-            errors_in_row: 0,
         };
         let mut processor = FakeProcessor {
             calls: 0,

@@ -44,7 +44,11 @@ use pa_track::{
     Board, Detection, DetectorConfig, Pose, TagFamily, TrackEvent, TrackOutput, TrackState,
     TrackTarget, Tracker, TrackerConfig,
 };
+use pa_video::source::{has_ext, Next, Pixels, Source, StillsSource, VideoSource};
 use serde_json::{json, Value};
+
+/// Natural order of file names (`pa_video::source`), also used by `run`.
+pub use pa_video::source::natural_cmp;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -97,53 +101,7 @@ pub struct Args {
 const VIDEO_EXTS: &[&str] = &[
     "mp4", "mov", "avi", "mkv", "webm", "m4v", "mpg", "mpeg", "wmv", "flv", "mts", "m2ts", "3gp",
 ];
-const IMAGE_EXTS: &[&str] = &["png", "jpg", "jpeg", "tif", "tiff"];
-
-fn has_ext(p: &Path, exts: &[&str]) -> bool {
-    p.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| exts.iter().any(|x| e.eq_ignore_ascii_case(x)))
-}
-
-/// Natural order: digit runs compare by value ("f2" < "f10"), the rest case-insensitively.
-pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
-    use std::cmp::Ordering;
-    let (mut a, mut b) = (a.as_bytes(), b.as_bytes());
-    loop {
-        match (a.first(), b.first()) {
-            (None, None) => return Ordering::Equal,
-            (None, _) => return Ordering::Less,
-            (_, None) => return Ordering::Greater,
-            (Some(x), Some(y)) if x.is_ascii_digit() && y.is_ascii_digit() => {
-                let na = a.iter().take_while(|c| c.is_ascii_digit()).count();
-                let nb = b.iter().take_while(|c| c.is_ascii_digit()).count();
-                let (da, db) = (&a[..na], &b[..nb]);
-                let ta: &[u8] = {
-                    let z = da.iter().take_while(|c| **c == b'0').count();
-                    &da[z.min(na.saturating_sub(1))..]
-                };
-                let tb: &[u8] = {
-                    let z = db.iter().take_while(|c| **c == b'0').count();
-                    &db[z.min(nb.saturating_sub(1))..]
-                };
-                let o = ta.len().cmp(&tb.len()).then(ta.cmp(tb)).then(na.cmp(&nb));
-                if o != Ordering::Equal {
-                    return o;
-                }
-                a = &a[na..];
-                b = &b[nb..];
-            }
-            (Some(x), Some(y)) => {
-                let o = x.to_ascii_lowercase().cmp(&y.to_ascii_lowercase());
-                if o != Ordering::Equal {
-                    return o;
-                }
-                a = &a[1..];
-                b = &b[1..];
-            }
-        }
-    }
-}
+const IMAGE_EXTS: &[&str] = pa_video::source::STILL_EXTS;
 
 /// The frames to track.
 pub enum Input {
@@ -183,24 +141,7 @@ pub(crate) fn list_frames(input: &Path) -> Result<(Vec<PathBuf>, bool)> {
         bail!("{}: no such file or folder", input.display());
     }
     if input.is_dir() {
-        let mut frames: Vec<PathBuf> = std::fs::read_dir(input)
-            .with_context(|| format!("reading folder {}", input.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.is_file() && has_ext(p, IMAGE_EXTS))
-            .collect();
-        frames.sort_by(|a, b| {
-            natural_cmp(
-                &a.file_name().unwrap_or_default().to_string_lossy(),
-                &b.file_name().unwrap_or_default().to_string_lossy(),
-            )
-        });
-        if frames.is_empty() {
-            bail!(
-                "{}: no images (.png, .jpg, .jpeg, .tif, .tiff) in this folder",
-                input.display()
-            );
-        }
-        return Ok((frames, false));
+        return Ok((pa_video::source::list_stills(input)?, false));
     }
     if has_ext(input, VIDEO_EXTS) {
         bail!(
@@ -677,7 +618,7 @@ pub fn run(args: Args) -> Result<()> {
             let img = draw_frame(&gray, &out, &cfg.camera, cfg.axis_m);
             let p = match &frames {
                 FrameStream::Video { .. } => video_draw_path(dir, &args.input, i),
-                FrameStream::Images { .. } => draw_path(dir, &draw_as),
+                FrameStream::Images(_) => draw_path(dir, &draw_as),
             };
             let rgba = image::DynamicImage::ImageRgb8(img).to_rgba8();
             super::write_png_atomic(&p, rgba.width(), rgba.height(), rgba.as_raw())?;
@@ -729,21 +670,12 @@ struct TrackFrame {
     decoded: Result<image::GrayImage>,
 }
 
-/// Decode errors in a row after which a video is given up.
-const MAX_VIDEO_ERRORS_IN_ROW: usize = 25;
-
-/// The frames of the input, one at a time (a video is decoded as it goes).
+/// The frames of the input, one at a time (a video is decoded as it goes), from
+/// `pa_video::source`.
 enum FrameStream {
-    Images {
-        paths: Vec<PathBuf>,
-        next: usize,
-    },
+    Images(StillsSource),
     Video {
-        reader: Box<pa_video::VideoReader>,
-        path: PathBuf,
-        name: String,
-        next: usize,
-        errors_in_row: usize,
+        source: Box<VideoSource>,
         /// The last frame's time, seconds (a skipped frame is one frame period later).
         last_time_s: Option<f64>,
     },
@@ -752,17 +684,9 @@ enum FrameStream {
 impl FrameStream {
     fn new(input: Input, path: &Path) -> Self {
         match input {
-            Input::Images(paths) => FrameStream::Images { paths, next: 0 },
+            Input::Images(paths) => FrameStream::Images(StillsSource::new(paths)),
             Input::Video(reader) => FrameStream::Video {
-                reader,
-                path: path.to_path_buf(),
-                name: path
-                    .file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned(),
-                next: 0,
-                errors_in_row: 0,
+                source: Box::new(VideoSource::new(*reader, path, None)),
                 last_time_s: None,
             },
         }
@@ -770,71 +694,46 @@ impl FrameStream {
 
     fn next(&mut self, fps: f64) -> Result<Option<TrackFrame>> {
         match self {
-            FrameStream::Images { paths, next } => {
-                let i = *next;
-                let Some(path) = paths.get(i) else {
-                    return Ok(None);
+            FrameStream::Images(stills) => {
+                let f = match stills.next()? {
+                    Next::Frame(f) => f,
+                    Next::End => return Ok(None),
+                    Next::Lost(e) => return Err(e.into()),
                 };
-                *next += 1;
-                let decoded = pa_video::still::read_still(path, &Default::default())
-                    .map(|img| img.to_luma8())
-                    .map_err(anyhow::Error::from);
+                let i = f.index;
+                let (decoded, draw_as) = decode(f.pixels, Path::new(""), i);
                 Ok(Some(TrackFrame {
                     index: i,
-                    name: path
-                        .file_name()
-                        .unwrap_or_default()
-                        .to_string_lossy()
-                        .into_owned(),
-                    draw_as: path.clone(),
+                    name: f.name,
+                    draw_as,
                     time_s: i as f64 / fps,
                     pts_s: None,
                     decoded,
                 }))
             }
             FrameStream::Video {
-                reader,
-                path,
-                name,
-                next,
-                errors_in_row,
+                source,
                 last_time_s,
             } => {
-                let i = *next;
-                let (decoded, pts_s) = match reader.next_frame() {
-                    Ok(None) => return Ok(None),
-                    Ok(Some(f)) => {
-                        *errors_in_row = 0;
-                        let pts = f.pts.as_secs_f64();
-                        let img = image::RgbaImage::from_raw(f.width, f.height, f.rgba)
-                            .map(|img| image::DynamicImage::ImageRgba8(img).to_luma8())
-                            .with_context(|| {
-                                format!(
-                                    "{}: frame {i} has the wrong number of bytes",
-                                    path.display()
-                                )
-                            });
-                        (img, Some(pts))
-                    }
-                    // One damaged frame: skipped; the reader goes on with the next one.
-                    Err(
-                        e @ (pa_video::VideoError::Decode { .. }
-                        | pa_video::VideoError::Corrupt { .. }),
-                    ) if *errors_in_row < MAX_VIDEO_ERRORS_IN_ROW => {
-                        *errors_in_row += 1;
-                        (Err(anyhow::Error::from(e)), None)
-                    }
-                    Err(e) => return Err(e.into()),
+                let f = match source.next()? {
+                    Next::Frame(f) => f,
+                    Next::End => return Ok(None),
+                    Next::Lost(e) => return Err(e.into()),
                 };
-                *next += 1;
+                let i = f.index;
+                let pts_s = match &f.pixels {
+                    Pixels::Frame(fr) => Some(fr.pts.as_secs_f64()),
+                    _ => None,
+                };
+                let (decoded, draw_as) = decode(f.pixels, source.path(), i);
                 // Time for the tracker: the frame's own, else one frame period after the last.
-                let period_s = 1.0 / reader.info().fps.map_or(fps, |f| f.as_f64());
+                let period_s = 1.0 / source.info().fps.map_or(fps, |f| f.as_f64());
                 let time_s = pts_s.unwrap_or(last_time_s.map_or(0.0, |t| t + period_s));
                 *last_time_s = Some(time_s);
                 Ok(Some(TrackFrame {
                     index: i,
-                    name: name.clone(),
-                    draw_as: path.clone(),
+                    name: f.name,
+                    draw_as,
                     time_s,
                     pts_s,
                     decoded,
@@ -842,6 +741,30 @@ impl FrameStream {
             }
         }
     }
+}
+
+/// A frame's pixels as a grey image (or why not), and the file that names the frame in
+/// messages: the still, or the `video` it comes from.
+fn decode(pixels: Pixels, video: &Path, i: usize) -> (Result<image::GrayImage>, PathBuf) {
+    let decoded = match pixels {
+        Pixels::Still(path) => {
+            let d = pa_video::still::read_still(&path, &Default::default())
+                .map(|img| img.to_luma8())
+                .map_err(anyhow::Error::from);
+            return (d, path);
+        }
+        Pixels::Frame(f) => image::RgbaImage::from_raw(f.width, f.height, f.rgba)
+            .map(|img| image::DynamicImage::ImageRgba8(img).to_luma8())
+            .with_context(|| {
+                format!(
+                    "{}: frame {i} has the wrong number of bytes",
+                    video.display()
+                )
+            }),
+        // One damaged frame: skipped; the reader goes on with the next one.
+        Pixels::Unreadable(e) => Err(anyhow::Error::from(e)),
+    };
+    (decoded, video.to_path_buf())
 }
 
 fn emit(log: &mut String, stdout: &mut impl Write, to_file: bool, v: &Value) -> Result<()> {
@@ -853,16 +776,4 @@ fn emit(log: &mut String, stdout: &mut impl Write, to_file: bool, v: &Value) -> 
         writeln!(stdout, "{line}")?;
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::natural_cmp;
-
-    #[test]
-    fn natural_order() {
-        let mut v = vec!["f10.png", "f2.png", "F1.png", "f02.png", "a.png"];
-        v.sort_by(|a, b| natural_cmp(a, b));
-        assert_eq!(v, ["a.png", "F1.png", "f2.png", "f02.png", "f10.png"]);
-    }
 }

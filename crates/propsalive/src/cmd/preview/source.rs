@@ -1,7 +1,10 @@
 //! Where the preview's camera frames come from: the built-in scene, a folder of stills, a
-//! video file or a live camera (the last two through `pa-video`). A source hands out its
-//! *newest* frame when asked and keeps no queue of its own, so the preview never shows a stale
-//! frame.
+//! video file or a live camera. The last three are adapters over `pa_video::source`'s
+//! sources (stills in natural order, the video's damaged-frame policy, the camera's loss);
+//! the scene stays here because it renders. A source hands out its *newest* frame when asked
+//! and keeps no queue of its own, so the preview never shows a stale frame. Each frame says
+//! whether it starts a new sequence, and the preview resets the tracker before one (the
+//! policy of `pa_video::source`: before each still; kept across video and camera frames).
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -10,6 +13,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use pa_render::Renderer;
 use pa_scene::Scene;
+use pa_video::source::{self as vs, Next, Pixels, Source};
 
 use super::draw::{fit_text, Image, WHITE};
 use super::hud::text_scale;
@@ -35,6 +39,9 @@ pub struct SourceFrame {
     pub time_s: f64,
     /// A short label for the log: the scene camera's frame, or the still's file name.
     pub label: String,
+    /// True when the frame starts a new sequence: the tracker is reset before it (every
+    /// still; the first frame of a video, a camera or the scene's path).
+    pub starts_sequence: bool,
 }
 
 /// A source of camera frames.
@@ -99,6 +106,7 @@ impl FrameSource for SceneSource {
             acquired: Instant::now(),
             time_s,
             label: format!("scene camera {i}"),
+            starts_sequence: self.tick == 1,
         })
     }
 }
@@ -106,7 +114,7 @@ impl FrameSource for SceneSource {
 /// A folder of stills (a stop-motion take): animation frame `i` shows still `i` (the last
 /// still past the end), as `propsalive run` pairs them.
 pub struct StillsSource {
-    stills: Vec<PathBuf>,
+    stills: vs::StillsSource,
     width: u32,
     height: u32,
     fps: f32,
@@ -123,7 +131,7 @@ impl StillsSource {
             bail!("no stills");
         }
         Ok(Self {
-            stills,
+            stills: vs::StillsSource::new(stills),
             width,
             height,
             fps,
@@ -134,7 +142,7 @@ impl StillsSource {
 
     /// The still shown with animation frame `anim_frame`.
     pub fn index_for(&self, anim_frame: u32) -> usize {
-        (anim_frame as usize).min(self.stills.len() - 1)
+        (anim_frame as usize).min(self.stills.paths().len() - 1)
     }
 }
 
@@ -142,7 +150,7 @@ impl FrameSource for StillsSource {
     fn describe(&self) -> String {
         format!(
             "{} still(s), {}x{}, still i = animation frame i",
-            self.stills.len(),
+            self.stills.paths().len(),
             self.width,
             self.height
         )
@@ -150,11 +158,13 @@ impl FrameSource for StillsSource {
 
     fn next_frame(&mut self, _renderer: &mut Renderer, want: &Want) -> Result<SourceFrame> {
         let i = self.index_for(want.anim_frame);
-        let path = &self.stills[i];
-        let label = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let Some(frame) = self.stills.frame(i) else {
+            bail!("no still {i}");
+        };
+        let Pixels::Still(path) = &frame.pixels else {
+            bail!("still {i} is not a still");
+        };
+        let label = frame.name.clone();
         let rgba8 = match self.cache.take() {
             Some((k, data)) if k == i => data,
             _ => match load_still(path, self.width, self.height) {
@@ -178,12 +188,10 @@ impl FrameSource for StillsSource {
             acquired: Instant::now(),
             time_s: i as f64 / self.fps as f64,
             label,
+            starts_sequence: frame.starts_sequence,
         })
     }
 }
-
-/// Decode errors in a row after which a video is given up.
-const MAX_VIDEO_ERRORS_IN_ROW: usize = 25;
 
 /// A video file (a take filmed as a video): animation frame `i` shows frame `i` of the video
 /// (the last frame past the end), as `propsalive run` pairs them. Frames are decoded in
@@ -191,17 +199,15 @@ const MAX_VIDEO_ERRORS_IN_ROW: usize = 25;
 /// decodes from its start (a video is not seekable frame by frame), so scrubbing backwards
 /// through a long video is slow. A frame the decoder rejects is a grey frame saying why.
 pub struct VideoSource {
-    path: PathBuf,
-    reader: pa_video::VideoReader,
+    video: vs::VideoSource,
     width: u32,
     height: u32,
     fps: f32,
-    /// Index of the frame the reader gives next.
-    next: usize,
     /// Frames in the file, once the end was reached.
     count: Option<usize>,
-    /// The last frame decoded (index, RGBA8 or why it could not be decoded).
-    cache: Option<(usize, std::result::Result<Vec<u8>, String>)>,
+    /// The last frame decoded (index, whether it starts the video's sequence, RGBA8 or why
+    /// it could not be decoded).
+    cache: Option<(usize, bool, std::result::Result<Vec<u8>, String>)>,
     /// Frames already warned about.
     warned: HashSet<usize>,
 }
@@ -209,15 +215,13 @@ pub struct VideoSource {
 impl VideoSource {
     /// Opens `path` (`pa-video`'s errors name the file, the codec and the feature).
     pub fn open(path: &Path, fps: f32) -> Result<Self> {
-        let reader = pa_video::VideoReader::open(path)?;
-        let (width, height) = (reader.info().width, reader.info().height);
+        let video = vs::VideoSource::open(path)?;
+        let (width, height) = (video.info().width, video.info().height);
         Ok(Self {
-            path: path.to_path_buf(),
-            reader,
+            video,
             width,
             height,
             fps,
-            next: 0,
             count: None,
             cache: None,
             warned: HashSet::new(),
@@ -237,39 +241,45 @@ impl VideoSource {
     }
 
     /// Decodes up to frame `want` (or the last frame, if the video is shorter).
+    #[cfg(test)]
     fn seek(&mut self, want: usize) -> Result<(usize, std::result::Result<Vec<u8>, String>)> {
-        if let Some((k, data)) = &self.cache {
+        self.seek_frame(want).map(|(i, _, data)| (i, data))
+    }
+
+    /// Decodes up to frame `want` (or the last frame, if the video is shorter): its index,
+    /// whether it starts the video's sequence, and its pixels or why they are missing.
+    #[allow(clippy::type_complexity)]
+    fn seek_frame(
+        &mut self,
+        want: usize,
+    ) -> Result<(usize, bool, std::result::Result<Vec<u8>, String>)> {
+        if let Some((k, starts, data)) = &self.cache {
             if *k == want {
-                return Ok((*k, data.clone()));
+                return Ok((*k, *starts, data.clone()));
             }
         }
-        if want < self.next {
-            self.reader = pa_video::VideoReader::open(&self.path)?;
-            self.next = 0;
+        if want < self.video.next_index() {
+            self.video.rewind()?;
         }
-        let mut errors = 0;
+        // Each seek gets the full allowance of damaged frames in a row.
+        self.video.reset_error_run();
         let mut last = None;
-        while self.next <= want {
-            let k = self.next;
-            match self.reader.next_frame() {
-                Ok(Some(f)) => {
-                    errors = 0;
-                    last = Some((k, Ok(f.rgba)));
+        while self.video.next_index() <= want {
+            match self.video.next()? {
+                Next::Frame(f) => {
+                    let data = match f.pixels {
+                        Pixels::Frame(frame) => Ok(frame.rgba),
+                        Pixels::Unreadable(e) => Err(e.to_string()),
+                        Pixels::Still(p) => Err(format!("{}: not a video frame", p.display())),
+                    };
+                    last = Some((f.index, f.starts_sequence, data));
                 }
-                Ok(None) => {
-                    self.count = Some(k);
+                Next::End => {
+                    self.count = Some(self.video.next_index());
                     break;
                 }
-                Err(
-                    e
-                    @ (pa_video::VideoError::Decode { .. } | pa_video::VideoError::Corrupt { .. }),
-                ) if errors < MAX_VIDEO_ERRORS_IN_ROW => {
-                    errors += 1;
-                    last = Some((k, Err(e.to_string())));
-                }
-                Err(e) => return Err(e.into()),
+                Next::Lost(e) => return Err(e.into()),
             }
-            self.next += 1;
         }
         match last {
             Some(found) => {
@@ -278,9 +288,9 @@ impl VideoSource {
             }
             // The end was reached before `want` with nothing new decoded: the last frame.
             None => match self.count {
-                Some(0) => bail!("{}: the video has no frames", self.path.display()),
-                Some(n) if want >= n => self.seek(n - 1),
-                _ => bail!("{}: cannot reach frame {want}", self.path.display()),
+                Some(0) => bail!("{}: the video has no frames", self.video.path().display()),
+                Some(n) if want >= n => self.seek_frame(n - 1),
+                _ => bail!("{}: cannot reach frame {want}", self.video.path().display()),
             },
         }
     }
@@ -288,15 +298,12 @@ impl VideoSource {
 
 impl FrameSource for VideoSource {
     fn describe(&self) -> String {
-        format!(
-            "{}, frame i = animation frame i",
-            pa_video::FrameSource::describe(&self.reader)
-        )
+        format!("{}, frame i = animation frame i", self.video.describe())
     }
 
     fn next_frame(&mut self, _renderer: &mut Renderer, want: &Want) -> Result<SourceFrame> {
         let i = self.clamp(want.anim_frame);
-        let (i, decoded) = self.seek(i)?;
+        let (i, starts_sequence, decoded) = self.seek_frame(i)?;
         let rgba8 = match decoded {
             Ok(data) if data.len() == self.width as usize * self.height as usize * 4 => data,
             Ok(_) => placeholder(self.width, self.height, "a frame of another size"),
@@ -307,18 +314,14 @@ impl FrameSource for VideoSource {
                 placeholder(self.width, self.height, &msg)
             }
         };
-        let name = self
-            .path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
         Ok(SourceFrame {
             rgba8,
             width: self.width,
             height: self.height,
             acquired: Instant::now(),
             time_s: i as f64 / self.fps as f64,
-            label: format!("{name} frame {i}"),
+            label: format!("{} frame {i}", self.video.name()),
+            starts_sequence,
         })
     }
 }
@@ -327,7 +330,7 @@ impl FrameSource for VideoSource {
 /// the camera disappears the preview goes on showing a grey frame that says so (captures,
 /// recordings and the keys still work; Q quits).
 pub struct CameraSource {
-    camera: pa_video::Camera,
+    camera: vs::CameraSource,
     width: u32,
     height: u32,
     /// Why the camera is gone, once it is.
@@ -340,7 +343,7 @@ impl CameraSource {
     pub fn new(camera: pa_video::Camera) -> Self {
         let f = camera.format();
         Self {
-            camera,
+            camera: vs::CameraSource::new(camera),
             width: f.width,
             height: f.height,
             lost: None,
@@ -357,14 +360,18 @@ impl FrameSource for CameraSource {
     fn describe(&self) -> String {
         format!(
             "{}, live (the animation advances one frame per camera frame while playing)",
-            pa_video::FrameSource::describe(&self.camera)
+            self.camera.describe()
         )
     }
 
     fn next_frame(&mut self, _renderer: &mut Renderer, _want: &Want) -> Result<SourceFrame> {
         if self.lost.is_none() {
-            match self.camera.next_frame() {
-                Ok(Some(f)) if (f.width, f.height) == (self.width, self.height) => {
+            match self.camera.next()? {
+                Next::Frame(vs::SourceFrame {
+                    pixels: Pixels::Frame(f),
+                    starts_sequence,
+                    ..
+                }) if (f.width, f.height) == (self.width, self.height) => {
                     self.last_time_s = f.pts.as_secs_f64();
                     return Ok(SourceFrame {
                         rgba8: f.rgba,
@@ -373,24 +380,31 @@ impl FrameSource for CameraSource {
                         acquired: Instant::now(),
                         time_s: f.pts.as_secs_f64(),
                         label: format!("camera frame {}", f.index),
+                        starts_sequence,
                     });
                 }
-                Ok(Some(f)) => bail!(
+                Next::Frame(vs::SourceFrame {
+                    pixels: Pixels::Frame(f),
+                    ..
+                }) => bail!(
                     "camera {}: a {}x{} frame, the stream is {}x{}",
-                    self.camera.device().display(),
+                    self.camera.camera().device().display(),
                     f.width,
                     f.height,
                     self.width,
                     self.height
                 ),
-                Ok(None) => {
+                Next::Frame(_) => bail!(
+                    "camera {}: not a camera frame",
+                    self.camera.camera().device().display()
+                ),
+                Next::End => {
                     self.lost = Some(format!(
                         "camera {} stopped delivering frames",
-                        self.camera.device().display()
+                        self.camera.camera().device().display()
                     ))
                 }
-                Err(e) if e.is_source_lost() => self.lost = Some(e.to_string()),
-                Err(e) => return Err(e.into()),
+                Next::Lost(e) => self.lost = Some(e.to_string()),
             }
             if let Some(msg) = &self.lost {
                 errln!("warning: {msg}");
@@ -406,6 +420,7 @@ impl FrameSource for CameraSource {
             acquired: Instant::now(),
             time_s: self.last_time_s,
             label: "camera lost".into(),
+            starts_sequence: false,
         })
     }
 }
@@ -505,6 +520,9 @@ mod tests {
         assert!(i == 1 && near(v, 80), "{i} {v}");
         let (i, v) = grey(&mut s, 1);
         assert!(i == 1 && near(v, 80), "cached: {i} {v}");
+        // The tracker policy: a video is one sequence, started by its first frame.
+        assert!(s.seek_frame(0).unwrap().1, "frame 0 starts the sequence");
+        assert!(!s.seek_frame(2).unwrap().1, "frame 2 continues it");
         let err = VideoSource::open(&dir.path().join("missing.mp4"), 24.0)
             .err()
             .unwrap()
@@ -527,17 +545,21 @@ mod tests {
             .unwrap();
         let mut s = StillsSource::new(vec![good, bad, small], 64, 32, 24.0).unwrap();
         assert_eq!(
-            &load_still(&s.stills[0], 64, 32).unwrap()[..4],
+            &load_still(&s.stills.paths()[0], 64, 32).unwrap()[..4],
             &[200, 10, 10, 255]
         );
-        let err = load_still(&s.stills[2], 64, 32).unwrap_err().to_string();
+        let err = load_still(&s.stills.paths()[2], 64, 32)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("is 8x8, the take is 64x32"), "{err}");
-        assert!(load_still(&s.stills[1], 64, 32).is_err());
+        assert!(load_still(&s.stills.paths()[1], 64, 32).is_err());
         let grey = placeholder(64, 32, "oops");
         assert_eq!(grey.len(), 64 * 32 * 4);
         assert_eq!(&grey[..4], &[48, 48, 52, 255]);
         assert!(grey.chunks_exact(4).any(|p| p[..3] == WHITE));
         assert_eq!(s.index_for(1), 1);
         assert!(s.warned.insert(1));
+        // The tracker policy: every still starts a new sequence.
+        assert!((0..3).all(|i| s.stills.frame(i).unwrap().starts_sequence));
     }
 }
