@@ -291,17 +291,32 @@ impl fmt::Display for ImageOutcome {
     }
 }
 
+/// Why [`read_image`] failed: the message of the error it wraps.
+#[derive(Debug, thiserror::Error)]
+enum ReadImageError {
+    #[error("{0}")]
+    Open(pa_io::IoError),
+    #[error("{0}")]
+    Sniff(std::io::Error),
+    #[error("{0}")]
+    Decode(image::ImageError),
+}
+
 /// Decodes an image file, opened only if it is a regular file ([`pa_io::open_regular`]).
 /// The format comes from the extension, else from the content; the decoder's default
 /// allocation limits apply.
-fn read_image(path: &Path) -> Result<image::DynamicImage, String> {
-    let file = pa_io::open_regular(path).map_err(|e| e.to_string())?;
+fn read_image(path: &Path) -> Result<image::DynamicImage, ReadImageError> {
+    let file = pa_io::open_regular(path).map_err(ReadImageError::Open)?;
     let mut reader = image::ImageReader::new(std::io::BufReader::new(file));
     match image::ImageFormat::from_path(path) {
         Ok(format) => reader.set_format(format),
-        Err(_) => reader = reader.with_guessed_format().map_err(|e| e.to_string())?,
+        Err(_) => {
+            reader = reader
+                .with_guessed_format()
+                .map_err(ReadImageError::Sniff)?
+        }
     }
-    reader.decode().map_err(|e| e.to_string())
+    reader.decode().map_err(ReadImageError::Decode)
 }
 
 /// Collects views from images, one at a time, then calibrates.
@@ -385,7 +400,9 @@ impl Calibrator {
             Ok(img) => self.add_image(&name, &GrayImage::from(&img)),
             Err(e) => {
                 self.images += 1;
-                let reason = SkipReason::Unreadable { error: e };
+                let reason = SkipReason::Unreadable {
+                    error: e.to_string(),
+                };
                 self.skipped.push(Skipped {
                     name,
                     reason: reason.clone(),

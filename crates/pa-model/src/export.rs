@@ -45,7 +45,7 @@ pub fn write(model: &Model, posed: &[PosedPrimitive], path: &Path) -> Result<(),
     let bytes = match format {
         Format::Obj => obj_bytes(model, posed).into_bytes(),
         Format::Stl => stl_bytes(model, posed),
-        Format::Glb => glb_bytes(model, posed).map_err(export_err)?,
+        Format::Glb => glb_bytes(model, posed).map_err(|e| export_err(e.to_string()))?,
     };
     write_atomic(path, &bytes).map_err(|e| ModelError::new(path, ErrorKind::Io(e)))
 }
@@ -148,8 +148,8 @@ pub fn stl_bytes(model: &Model, posed: &[PosedPrimitive]) -> Vec<u8> {
     out
 }
 
-/// A static GLB of the posed mesh.
-pub fn glb_bytes(model: &Model, posed: &[PosedPrimitive]) -> Result<Vec<u8>, String> {
+/// A static GLB of the posed mesh; [`ErrorKind::NoTriangles`] when no primitive has any.
+pub fn glb_bytes(model: &Model, posed: &[PosedPrimitive]) -> Result<Vec<u8>, ErrorKind> {
     use serde_json::json;
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -235,7 +235,7 @@ pub fn glb_bytes(model: &Model, posed: &[PosedPrimitive]) -> Result<Vec<u8>, Str
         nodes.push(json!({"name": p.label(), "mesh": meshes.len() - 1}));
     }
     if meshes.is_empty() {
-        return Err("the posed model has no triangles".into());
+        return Err(ErrorKind::NoTriangles);
     }
     let node_ids: Vec<usize> = (0..nodes.len()).collect();
     let doc = json!({
@@ -248,9 +248,10 @@ pub fn glb_bytes(model: &Model, posed: &[PosedPrimitive]) -> Result<Vec<u8>, Str
 }
 
 /// Packs a glTF JSON document and its binary buffer into a GLB container (4-byte aligned
-/// chunks, JSON padded with spaces, BIN with zeros).
-pub fn glb_container(doc: &serde_json::Value, mut bin: Vec<u8>) -> Result<Vec<u8>, String> {
-    let mut json_bytes = serde_json::to_vec(doc).map_err(|e| e.to_string())?;
+/// chunks, JSON padded with spaces, BIN with zeros). Fails with [`ErrorKind::GlbJson`] or
+/// [`ErrorKind::GlbTooLarge`].
+pub fn glb_container(doc: &serde_json::Value, mut bin: Vec<u8>) -> Result<Vec<u8>, ErrorKind> {
+    let mut json_bytes = serde_json::to_vec(doc).map_err(ErrorKind::GlbJson)?;
     while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
@@ -258,8 +259,7 @@ pub fn glb_container(doc: &serde_json::Value, mut bin: Vec<u8>) -> Result<Vec<u8
         bin.push(0);
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
-    let total32 =
-        u32::try_from(total).map_err(|_| format!("GLB of {total} bytes is over 4 GiB"))?;
+    let total32 = u32::try_from(total).map_err(|_| ErrorKind::GlbTooLarge { bytes: total })?;
     let mut out = Vec::with_capacity(total);
     out.extend(b"glTF");
     out.extend(2u32.to_le_bytes());

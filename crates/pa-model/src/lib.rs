@@ -173,6 +173,16 @@ pub enum ErrorKind {
     NoSuchAnimation(String),
     #[error("cannot export: {0}")]
     Export(String),
+    /// A GLB of a posed model without triangles ([`export::glb_bytes`]).
+    #[error("the posed model has no triangles")]
+    NoTriangles,
+    /// A GLB container larger than its 32-bit length field can say
+    /// ([`export::glb_container`]).
+    #[error("GLB of {bytes} bytes is over 4 GiB")]
+    GlbTooLarge { bytes: usize },
+    /// Serialising a GLB's JSON chunk ([`export::glb_container`]).
+    #[error("{0}")]
+    GlbJson(serde_json::Error),
 }
 
 /// "there is 1 node", "there are 3 nodes".

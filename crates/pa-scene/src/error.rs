@@ -27,7 +27,7 @@ pub enum SceneError {
     Image(image::ImageError),
     /// Assembling the prop's GLB container (`pa_model::export::glb_container`).
     #[error("{0}")]
-    Glb(String),
+    Glb(pa_model::ErrorKind),
     /// Building or running the frame pipeline.
     #[error("{0}")]
     Pipeline(pa_pipeline::ar::ArError),

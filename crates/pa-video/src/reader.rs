@@ -506,13 +506,21 @@ struct NativeDecoder {
 /// A converted picture: width, height, RGBA8 pixels.
 type Rgba = (u32, u32, Vec<u8>);
 
+/// A decoded picture whose planes do not match its size.
+#[derive(Debug, thiserror::Error)]
+#[error("the decoder returned an inconsistent {width}x{height} picture")]
+struct InconsistentPicture {
+    width: usize,
+    height: usize,
+}
+
 /// Converts a decoded picture to RGBA8, cropped to the clean aperture; `Err` names the size
 /// of an inconsistent picture.
 fn yuv_to_rgba(
     yuv: &impl YUVSource,
     clap: Option<CleanAperture>,
     color: YuvColor,
-) -> Result<Rgba, String> {
+) -> Result<Rgba, InconsistentPicture> {
     let (w, h) = yuv.dimensions();
     let (ys, us, _) = yuv.strides();
     let planes = I420Planes {
@@ -530,9 +538,10 @@ fn yuv_to_rgba(
         .unwrap_or((0, 0, w, h));
     let mut rgba = Vec::new();
     if !i420_to_rgba(&planes, crop, color, &mut rgba) {
-        return Err(format!(
-            "the decoder returned an inconsistent {w}x{h} picture"
-        ));
+        return Err(InconsistentPicture {
+            width: w,
+            height: h,
+        });
     }
     Ok((crop.2 as u32, crop.3 as u32, rgba))
 }
@@ -618,10 +627,10 @@ impl NativeDecoder {
                 Ok(Some(yuv)) => {
                     let converted = yuv_to_rgba(&yuv, self.clap, self.color);
                     let pts = self.pending_pts.pop_front().unwrap_or(sample.pts);
-                    let converted = converted.map_err(|detail| VideoError::Decode {
+                    let converted = converted.map_err(|e| VideoError::Decode {
                         path: self.path.clone(),
                         frame: i as u64,
-                        detail,
+                        detail: e.to_string(),
                     })?;
                     return Ok(Some(self.make_frame(pts, converted)));
                 }
@@ -630,27 +639,28 @@ impl NativeDecoder {
         if !self.flushed {
             self.flushed = true;
             let (clap, color) = (self.clap, self.color);
-            let converted: Vec<Result<Rgba, String>> = match self.decoder.flush_remaining() {
-                Ok(frames) => frames
-                    .iter()
-                    .map(|yuv| yuv_to_rgba(yuv, clap, color))
-                    .collect(),
-                Err(e) => {
-                    return Err(VideoError::Decode {
-                        path: self.path.clone(),
-                        frame: self.samples.len() as u64,
-                        detail: format!("flushing the decoder: {e}"),
-                    })
-                }
-            };
+            let converted: Vec<Result<Rgba, InconsistentPicture>> =
+                match self.decoder.flush_remaining() {
+                    Ok(frames) => frames
+                        .iter()
+                        .map(|yuv| yuv_to_rgba(yuv, clap, color))
+                        .collect(),
+                    Err(e) => {
+                        return Err(VideoError::Decode {
+                            path: self.path.clone(),
+                            frame: self.samples.len() as u64,
+                            detail: format!("flushing the decoder: {e}"),
+                        })
+                    }
+                };
             for c in converted {
                 let Some(pts) = self.pending_pts.pop_front() else {
                     break;
                 };
-                let c = c.map_err(|detail| VideoError::Decode {
+                let c = c.map_err(|e| VideoError::Decode {
                     path: self.path.clone(),
                     frame: self.samples.len() as u64,
-                    detail,
+                    detail: e.to_string(),
                 })?;
                 let f = self.make_frame(pts, c);
                 self.flushed_frames.push_back(f);

@@ -527,10 +527,10 @@ impl Mp4Writer {
             display: (self.width, self.height),
             avcc: &avcc,
         })
-        .map_err(|detail| VideoError::Encode {
+        .map_err(|e| VideoError::Encode {
             path: self.path.clone(),
             frame: self.frames_in,
-            detail,
+            detail: e.to_string(),
         })?;
         let mdat_size = self.pos - self.mdat_start;
         self.write_bytes(&moov)?;

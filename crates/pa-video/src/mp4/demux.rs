@@ -1,189 +1,13 @@
-//! A small ISO base media file format (MP4 / QuickTime MOV) demuxer and muxer for one video
-//! track.
-//!
-//! The demuxer reads only box headers and the `moov` box into memory (at most
-//! [`MAX_MOOV_BYTES`]); samples are read one at a time by offset. Every size, count and offset
-//! from the file is checked against the bytes that are really there before it is used, and
-//! the sample table is capped at [`MAX_SAMPLES`], so a hostile file costs at most a few
-//! hundred megabytes and never panics.
-//!
-//! The muxer writes `ftyp`, then one `mdat` (64-bit size, patched at the end), then `moov`
-//! with `mvhd`, one `trak` (`tkhd`, `mdia`/`mdhd`/`hdlr`/`minf`/`vmhd`/`dinf`/`stbl` with
-//! `stsd` (`avc1` + `avcC` [+ `clap`], `pasp`), `stts`, `stss`, `stsc`, `stsz`,
-//! `stco`/`co64`)). One sample per chunk.
+//! The demuxer: the top-level boxes, the first video track's sample table, and samples read
+//! one at a time by offset.
 
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
+use super::boxes::{child_boxes, find_child, Cur};
+use super::{fourcc_str, FourCc, Mp4Error, MAX_MOOV_BYTES, MAX_SAMPLES, MAX_SAMPLE_BYTES};
 use crate::VideoError;
-
-/// Largest `moov` box read into memory.
-pub const MAX_MOOV_BYTES: u64 = 64 << 20;
-/// Most samples (frames) a track may have: 46 hours at 24 fps.
-pub const MAX_SAMPLES: u64 = 4_000_000;
-/// Largest single sample (one coded frame).
-pub const MAX_SAMPLE_BYTES: u64 = 64 << 20;
-
-/// A four-character code.
-pub type FourCc = [u8; 4];
-
-/// Printable form of a four-character code.
-pub fn fourcc_str(f: &FourCc) -> String {
-    f.iter()
-        .map(|&b| {
-            if b.is_ascii_graphic() || b == b' ' {
-                b as char
-            } else {
-                '?'
-            }
-        })
-        .collect()
-}
-
-/// Bounds-checked big-endian reader over a byte slice.
-pub(crate) struct Cur<'a> {
-    data: &'a [u8],
-    pos: usize,
-    what: &'static str,
-}
-
-impl<'a> Cur<'a> {
-    pub(crate) fn new(data: &'a [u8], what: &'static str) -> Self {
-        Cur { data, pos: 0, what }
-    }
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
-        if self.data.len() - self.pos < n {
-            return Err(format!(
-                "'{}' box is truncated ({} bytes, needed {} more at byte {})",
-                self.what,
-                self.data.len(),
-                n,
-                self.pos
-            ));
-        }
-        let s = &self.data[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(s)
-    }
-    pub(crate) fn skip(&mut self, n: usize) -> Result<(), String> {
-        self.take(n).map(|_| ())
-    }
-    pub(crate) fn u8(&mut self) -> Result<u8, String> {
-        Ok(self.take(1)?[0])
-    }
-    pub(crate) fn u16(&mut self) -> Result<u16, String> {
-        let b = self.take(2)?;
-        Ok(u16::from_be_bytes([b[0], b[1]]))
-    }
-    pub(crate) fn u32(&mut self) -> Result<u32, String> {
-        let b = self.take(4)?;
-        Ok(u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
-    }
-    pub(crate) fn u64(&mut self) -> Result<u64, String> {
-        let b = self.take(8)?;
-        let mut a = [0u8; 8];
-        a.copy_from_slice(b);
-        Ok(u64::from_be_bytes(a))
-    }
-    fn fourcc(&mut self) -> Result<FourCc, String> {
-        let b = self.take(4)?;
-        Ok([b[0], b[1], b[2], b[3]])
-    }
-    fn remaining(&self) -> usize {
-        self.data.len() - self.pos
-    }
-    fn rest(&mut self) -> &'a [u8] {
-        let s = &self.data[self.pos..];
-        self.pos = self.data.len();
-        s
-    }
-    /// Reads a table of `count` entries of `entry_bytes` each, refusing counts that do not fit
-    /// in the box (so nothing is allocated for entries that are not there).
-    fn table(&mut self, count: u32, entry_bytes: usize) -> Result<&'a [u8], String> {
-        let need = (count as usize).checked_mul(entry_bytes);
-        match need {
-            Some(n) if n <= self.remaining() => self.take(n),
-            _ => Err(format!(
-                "'{}' box claims {count} entries but holds only {} bytes",
-                self.what,
-                self.remaining()
-            )),
-        }
-    }
-}
-
-/// Iterates over the child boxes packed in `data` as `(type, payload)`.
-///
-/// With `lenient`, trailing bytes too short for a box header and a zero-size terminator end
-/// the list quietly (QuickTime sample entries have them); otherwise they are errors.
-pub(crate) fn child_boxes(
-    data: &[u8],
-    lenient: bool,
-) -> impl Iterator<Item = Result<(FourCc, &[u8]), String>> {
-    let mut pos = 0usize;
-    let mut done = false;
-    std::iter::from_fn(move || {
-        if done || pos >= data.len() {
-            return None;
-        }
-        let rest = &data[pos..];
-        if rest.len() < 8 {
-            done = true;
-            return if lenient || rest.iter().all(|&b| b == 0) {
-                None
-            } else {
-                Some(Err(format!(
-                    "{} stray bytes after the last box",
-                    rest.len()
-                )))
-            };
-        }
-        let size32 = u32::from_be_bytes([rest[0], rest[1], rest[2], rest[3]]) as u64;
-        let kind: FourCc = [rest[4], rest[5], rest[6], rest[7]];
-        let (size, header) = match size32 {
-            0 if lenient => {
-                done = true;
-                return None;
-            }
-            0 => (rest.len() as u64, 8u64),
-            1 => {
-                if rest.len() < 16 {
-                    done = true;
-                    return Some(Err(format!(
-                        "'{}' box header is truncated",
-                        fourcc_str(&kind)
-                    )));
-                }
-                let mut a = [0u8; 8];
-                a.copy_from_slice(&rest[8..16]);
-                (u64::from_be_bytes(a), 16u64)
-            }
-            s => (s, 8u64),
-        };
-        if size < header || size > rest.len() as u64 {
-            done = true;
-            return Some(Err(format!(
-                "'{}' box claims {size} bytes but only {} remain in its parent",
-                fourcc_str(&kind),
-                rest.len()
-            )));
-        }
-        let payload = &rest[header as usize..size as usize];
-        pos += size as usize;
-        Some(Ok((kind, payload)))
-    })
-}
-
-fn find_child<'a>(data: &'a [u8], kind: &FourCc) -> Result<Option<&'a [u8]>, String> {
-    for b in child_boxes(data, false) {
-        let (k, payload) = b?;
-        if &k == kind {
-            return Ok(Some(payload));
-        }
-    }
-    Ok(None)
-}
 
 /// One coded frame of the video track, in decode order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -376,11 +200,11 @@ pub fn read_movie(file: &mut File, file_len: u64, path: &Path) -> Result<Movie, 
     };
     let mut video = None;
     for b in child_boxes(&moov, false) {
-        let (kind, payload) = b.map_err(corrupt)?;
+        let (kind, payload) = b.map_err(|e| corrupt(e.to_string()))?;
         match &kind {
             b"mvex" => fragmented = true,
             b"trak" if video.is_none() => {
-                video = parse_trak(payload, file_len).map_err(corrupt)?;
+                video = parse_trak(payload, file_len).map_err(|e| corrupt(e.to_string()))?;
             }
             _ => {}
         }
@@ -392,25 +216,26 @@ pub fn read_movie(file: &mut File, file_len: u64, path: &Path) -> Result<Movie, 
     })
 }
 
-fn full_box_version(c: &mut Cur<'_>) -> Result<u8, String> {
+fn full_box_version(c: &mut Cur<'_>) -> Result<u8, Mp4Error> {
     let v = c.u8()?;
     c.skip(3)?;
     Ok(v)
 }
 
-fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> {
+fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, Mp4Error> {
+    let missing = |parent, child| Mp4Error::MissingBox { parent, child };
     let Some(mdia) = find_child(trak, b"mdia")? else {
-        return Err("'trak' has no 'mdia' box".into());
+        return Err(missing("'trak'", "mdia"));
     };
     let Some(hdlr) = find_child(mdia, b"hdlr")? else {
-        return Err("'mdia' has no 'hdlr' box".into());
+        return Err(missing("'mdia'", "hdlr"));
     };
     let mut c = Cur::new(hdlr, "hdlr");
     c.skip(8)?;
     if &c.fourcc()? != b"vide" {
         return Ok(None);
     }
-    let mdhd = find_child(mdia, b"mdhd")?.ok_or("video 'mdia' has no 'mdhd' box")?;
+    let mdhd = find_child(mdia, b"mdhd")?.ok_or(missing("video 'mdia'", "mdhd"))?;
     let mut c = Cur::new(mdhd, "mdhd");
     let timescale = match full_box_version(&mut c)? {
         1 => {
@@ -423,7 +248,7 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         }
     };
     if timescale == 0 {
-        return Err("the video track's timescale is 0".into());
+        return Err(Mp4Error::ZeroTimescale);
     }
 
     let mut display = (0, 0);
@@ -465,9 +290,9 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         }
     }
 
-    let minf = find_child(mdia, b"minf")?.ok_or("video 'mdia' has no 'minf' box")?;
-    let stbl = find_child(minf, b"stbl")?.ok_or("video 'minf' has no 'stbl' box")?;
-    let stsd = find_child(stbl, b"stsd")?.ok_or("video 'stbl' has no 'stsd' box")?;
+    let minf = find_child(mdia, b"minf")?.ok_or(missing("video 'mdia'", "minf"))?;
+    let stbl = find_child(minf, b"stbl")?.ok_or(missing("video 'minf'", "stbl"))?;
+    let stsd = find_child(stbl, b"stsd")?.ok_or(missing("video 'stbl'", "stsd"))?;
     let entry = parse_stsd(stsd)?;
 
     // Sample sizes.
@@ -480,7 +305,7 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         let n = c.u32()?;
         count = u64::from(n);
         if count > MAX_SAMPLES {
-            return Err(format!("{count} samples exceed the limit of {MAX_SAMPLES}"));
+            return Err(Mp4Error::TooManySamples { count });
         }
         if constant == 0 {
             let table = c.table(n, 4)?;
@@ -490,25 +315,27 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
                 .collect();
         } else {
             if count.saturating_mul(u64::from(constant)) > file_len {
-                return Err(format!(
-                    "{count} samples of {constant} bytes do not fit in a {file_len}-byte file"
-                ));
+                return Err(Mp4Error::SamplesExceedFile {
+                    count,
+                    size: constant,
+                    file_len,
+                });
             }
             sizes = vec![constant; count as usize];
         }
     } else if find_child(stbl, b"stz2")?.is_some() {
-        return Err("compact sample sizes ('stz2') are not supported".into());
+        return Err(Mp4Error::CompactSampleSizes);
     } else {
-        return Err("video 'stbl' has no 'stsz' box".into());
+        return Err(missing("video 'stbl'", "stsz"));
     }
     if let Some(i) = sizes.iter().position(|&s| s == 0) {
-        return Err(format!("sample {i} has zero size"));
+        return Err(Mp4Error::EmptySample { index: i });
     }
     if let Some(i) = sizes.iter().position(|&s| u64::from(s) > MAX_SAMPLE_BYTES) {
-        return Err(format!(
-            "sample {i} of {} bytes exceeds the {MAX_SAMPLE_BYTES}-byte limit",
-            sizes[i]
-        ));
+        return Err(Mp4Error::SampleTooLarge {
+            index: i,
+            size: sizes[i],
+        });
     }
 
     // Chunk offsets.
@@ -533,11 +360,11 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
             })
             .collect()
     } else {
-        return Err("video 'stbl' has neither 'stco' nor 'co64'".into());
+        return Err(Mp4Error::NoChunkOffsets);
     };
 
     // Sample-to-chunk.
-    let stsc = find_child(stbl, b"stsc")?.ok_or("video 'stbl' has no 'stsc' box")?;
+    let stsc = find_child(stbl, b"stsc")?.ok_or(missing("video 'stbl'", "stsc"))?;
     let mut c = Cur::new(stsc, "stsc");
     full_box_version(&mut c)?;
     let n = c.u32()?;
@@ -549,7 +376,7 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         let per = u32::from_be_bytes([e[4], e[5], e[6], e[7]]);
         let desc = u32::from_be_bytes([e[8], e[9], e[10], e[11]]);
         if first == 0 || stsc_entries.last().is_some_and(|&(f, _)| first <= f) {
-            return Err(format!("'stsc' first_chunk {first} is out of order"));
+            return Err(Mp4Error::ChunkOrder { first });
         }
         if desc != 1 {
             multiple_entries = true;
@@ -577,10 +404,12 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
                 let size = sizes[i];
                 let end = off.checked_add(u64::from(size)).filter(|&e| e <= file_len);
                 let Some(end) = end else {
-                    return Err(format!(
-                        "sample {i} at offset {off} ({size} bytes) lies past the end of the \
-                         {file_len}-byte file"
-                    ));
+                    return Err(Mp4Error::SamplePastEnd {
+                        index: i,
+                        offset: off,
+                        size,
+                        file_len,
+                    });
                 };
                 samples.push(Sample {
                     offset: off,
@@ -594,15 +423,14 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         }
     }
     if samples.len() != sizes.len() {
-        return Err(format!(
-            "the sample table lists {} samples but its chunks hold {}",
-            sizes.len(),
-            samples.len()
-        ));
+        return Err(Mp4Error::ChunksShort {
+            listed: sizes.len(),
+            held: samples.len(),
+        });
     }
 
     // Decode times.
-    let stts = find_child(stbl, b"stts")?.ok_or("video 'stbl' has no 'stts' box")?;
+    let stts = find_child(stbl, b"stts")?.ok_or(missing("video 'stbl'", "stts"))?;
     let mut c = Cur::new(stts, "stts");
     full_box_version(&mut c)?;
     let n = c.u32()?;
@@ -617,12 +445,16 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
                 break;
             }
             samples[i].pts = dts;
-            dts = dts.checked_add(delta).ok_or("decode times overflow")?;
+            dts = dts.checked_add(delta).ok_or(Mp4Error::DecodeTimeOverflow)?;
             i += 1;
         }
     }
     if i < samples.len() {
-        return Err(format!("'stts' covers {i} of {} samples", samples.len()));
+        return Err(Mp4Error::TimesShort {
+            table: "stts",
+            covered: i,
+            samples: samples.len(),
+        });
     }
 
     // Composition offsets.
@@ -647,7 +479,11 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
             }
         }
         if i < samples.len() {
-            return Err(format!("'ctts' covers {i} of {} samples", samples.len()));
+            return Err(Mp4Error::TimesShort {
+                table: "ctts",
+                covered: i,
+                samples: samples.len(),
+            });
         }
     }
     for s in &mut samples {
@@ -667,7 +503,10 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
         for e in table.chunks_exact(4) {
             let k = u32::from_be_bytes([e[0], e[1], e[2], e[3]]) as usize;
             if k == 0 || k > samples.len() {
-                return Err(format!("'stss' names sample {k} of {}", samples.len()));
+                return Err(Mp4Error::SyncSampleOutOfRange {
+                    sample: k,
+                    samples: samples.len(),
+                });
             }
             samples[k - 1].sync = true;
         }
@@ -684,16 +523,16 @@ fn parse_trak(trak: &[u8], file_len: u64) -> Result<Option<VideoTrack>, String> 
     }))
 }
 
-fn parse_stsd(stsd: &[u8]) -> Result<SampleEntry, String> {
+fn parse_stsd(stsd: &[u8]) -> Result<SampleEntry, Mp4Error> {
     let mut c = Cur::new(stsd, "stsd");
     full_box_version(&mut c)?;
     let n = c.u32()?;
     if n == 0 {
-        return Err("'stsd' has no sample description".into());
+        return Err(Mp4Error::NoSampleDescription);
     }
     let first = child_boxes(c.rest(), false)
         .next()
-        .ok_or("'stsd' has no sample description")??;
+        .ok_or(Mp4Error::NoSampleDescription)??;
     let (fourcc, payload) = first;
     let mut entry = SampleEntry {
         fourcc,
@@ -753,272 +592,6 @@ pub fn read_sample(
         .map_err(|e| VideoError::io(path, "read", e))
 }
 
-// ---------------------------------------------------------------------------------------
-// Writing
-
-/// Builds nested boxes in memory, patching sizes on close.
-#[derive(Default)]
-pub(crate) struct BoxBuf {
-    pub(crate) buf: Vec<u8>,
-    open: Vec<usize>,
-}
-
-impl BoxBuf {
-    pub(crate) fn begin(&mut self, kind: &FourCc) {
-        self.open.push(self.buf.len());
-        self.buf.extend_from_slice(&[0, 0, 0, 0]);
-        self.buf.extend_from_slice(kind);
-    }
-    pub(crate) fn begin_full(&mut self, kind: &FourCc, version: u8, flags: u32) {
-        self.begin(kind);
-        self.u32((u32::from(version) << 24) | (flags & 0x00ff_ffff));
-    }
-    pub(crate) fn end(&mut self) -> Result<(), String> {
-        let start = self.open.pop().ok_or("box end without begin")?;
-        let size = u32::try_from(self.buf.len() - start).map_err(|_| "box over 4 GiB")?;
-        self.buf[start..start + 4].copy_from_slice(&size.to_be_bytes());
-        Ok(())
-    }
-    pub(crate) fn u8(&mut self, v: u8) {
-        self.buf.push(v);
-    }
-    pub(crate) fn u16(&mut self, v: u16) {
-        self.buf.extend_from_slice(&v.to_be_bytes());
-    }
-    pub(crate) fn u32(&mut self, v: u32) {
-        self.buf.extend_from_slice(&v.to_be_bytes());
-    }
-    pub(crate) fn u64(&mut self, v: u64) {
-        self.buf.extend_from_slice(&v.to_be_bytes());
-    }
-    pub(crate) fn bytes(&mut self, b: &[u8]) {
-        self.buf.extend_from_slice(b);
-    }
-    pub(crate) fn zeros(&mut self, n: usize) {
-        self.buf.resize(self.buf.len() + n, 0);
-    }
-}
-
-/// Everything the `moov` box of a written file needs.
-pub(crate) struct TrackLayout<'a> {
-    /// Track timescale (ticks per second).
-    pub timescale: u32,
-    /// Per-sample durations in ticks, run-length encoded `(count, delta)`.
-    pub durations: &'a [(u32, u32)],
-    /// Sample sizes.
-    pub sizes: &'a [u32],
-    /// Sample offsets.
-    pub offsets: &'a [u64],
-    /// 1-based numbers of sync samples.
-    pub sync: &'a [u32],
-    /// Coded (even) size in the sample entry.
-    pub coded: (u32, u32),
-    /// Display size (may be odd) for `tkhd` and `clap`.
-    pub display: (u32, u32),
-    /// The `avcC` payload.
-    pub avcc: &'a [u8],
-}
-
-const MATRIX: [u32; 9] = [0x0001_0000, 0, 0, 0, 0x0001_0000, 0, 0, 0, 0x4000_0000];
-const MOVIE_TIMESCALE: u32 = 1000;
-
-/// Serialises the `moov` box.
-pub(crate) fn build_moov(t: &TrackLayout<'_>) -> Result<Vec<u8>, String> {
-    let ticks: u64 = t
-        .durations
-        .iter()
-        .map(|&(n, d)| u64::from(n) * u64::from(d))
-        .sum();
-    let movie_duration =
-        (u128::from(ticks) * u128::from(MOVIE_TIMESCALE) / u128::from(t.timescale.max(1))) as u64;
-    let long = ticks > u64::from(u32::MAX) || movie_duration > u64::from(u32::MAX);
-    let version = u8::from(long);
-    let mut b = BoxBuf::default();
-    b.begin(b"moov");
-
-    b.begin_full(b"mvhd", version, 0);
-    if long {
-        b.u64(0);
-        b.u64(0);
-        b.u32(MOVIE_TIMESCALE);
-        b.u64(movie_duration);
-    } else {
-        b.u32(0);
-        b.u32(0);
-        b.u32(MOVIE_TIMESCALE);
-        b.u32(movie_duration as u32);
-    }
-    b.u32(0x0001_0000); // rate 1.0
-    b.u16(0x0100); // volume 1.0
-    b.zeros(10);
-    for m in MATRIX {
-        b.u32(m);
-    }
-    b.zeros(24);
-    b.u32(2); // next_track_ID
-    b.end()?;
-
-    b.begin(b"trak");
-    b.begin_full(b"tkhd", version, 0x3); // enabled, in movie
-    if long {
-        b.u64(0);
-        b.u64(0);
-        b.u32(1);
-        b.u32(0);
-        b.u64(movie_duration);
-    } else {
-        b.u32(0);
-        b.u32(0);
-        b.u32(1);
-        b.u32(0);
-        b.u32(movie_duration as u32);
-    }
-    b.zeros(8);
-    b.u16(0); // layer
-    b.u16(0); // alternate group
-    b.u16(0); // volume
-    b.u16(0);
-    for m in MATRIX {
-        b.u32(m);
-    }
-    b.u32(t.display.0 << 16);
-    b.u32(t.display.1 << 16);
-    b.end()?;
-
-    b.begin(b"mdia");
-    b.begin_full(b"mdhd", version, 0);
-    if long {
-        b.u64(0);
-        b.u64(0);
-        b.u32(t.timescale);
-        b.u64(ticks);
-    } else {
-        b.u32(0);
-        b.u32(0);
-        b.u32(t.timescale);
-        b.u32(ticks as u32);
-    }
-    b.u16(0x55c4); // language "und"
-    b.u16(0);
-    b.end()?;
-    b.begin_full(b"hdlr", 0, 0);
-    b.u32(0);
-    b.bytes(b"vide");
-    b.zeros(12);
-    b.bytes(b"Props Alive video\0");
-    b.end()?;
-
-    b.begin(b"minf");
-    b.begin_full(b"vmhd", 0, 1);
-    b.zeros(8);
-    b.end()?;
-    b.begin(b"dinf");
-    b.begin_full(b"dref", 0, 0);
-    b.u32(1);
-    b.begin_full(b"url ", 0, 1); // media in this file
-    b.end()?;
-    b.end()?;
-    b.end()?;
-
-    b.begin(b"stbl");
-    b.begin_full(b"stsd", 0, 0);
-    b.u32(1);
-    b.begin(b"avc1");
-    b.zeros(6);
-    b.u16(1); // data_reference_index
-    b.zeros(16);
-    b.u16(t.coded.0 as u16);
-    b.u16(t.coded.1 as u16);
-    b.u32(0x0048_0000); // 72 dpi
-    b.u32(0x0048_0000);
-    b.u32(0);
-    b.u16(1); // frame_count
-    let name = b"OpenH264 (Props Alive)";
-    b.u8(name.len() as u8);
-    b.bytes(name);
-    b.zeros(31 - name.len());
-    b.u16(0x0018);
-    b.u16(0xffff);
-    b.begin(b"avcC");
-    b.bytes(t.avcc);
-    b.end()?;
-    if t.display != t.coded {
-        // Display the top-left display.0 x display.1 of the coded picture.
-        b.begin(b"clap");
-        b.u32(t.display.0);
-        b.u32(1);
-        b.u32(t.display.1);
-        b.u32(1);
-        b.u32((t.display.0 as i32 - t.coded.0 as i32) as u32);
-        b.u32(2);
-        b.u32((t.display.1 as i32 - t.coded.1 as i32) as u32);
-        b.u32(2);
-        b.end()?;
-    }
-    b.begin(b"pasp");
-    b.u32(1);
-    b.u32(1);
-    b.end()?;
-    b.end()?; // avc1
-    b.end()?; // stsd
-
-    b.begin_full(b"stts", 0, 0);
-    b.u32(t.durations.len() as u32);
-    for &(n, d) in t.durations {
-        b.u32(n);
-        b.u32(d);
-    }
-    b.end()?;
-
-    b.begin_full(b"stss", 0, 0);
-    b.u32(t.sync.len() as u32);
-    for &s in t.sync {
-        b.u32(s);
-    }
-    b.end()?;
-
-    b.begin_full(b"stsc", 0, 0);
-    if t.sizes.is_empty() {
-        b.u32(0);
-    } else {
-        b.u32(1);
-        b.u32(1);
-        b.u32(1);
-        b.u32(1);
-    }
-    b.end()?;
-
-    b.begin_full(b"stsz", 0, 0);
-    b.u32(0);
-    b.u32(t.sizes.len() as u32);
-    for &s in t.sizes {
-        b.u32(s);
-    }
-    b.end()?;
-
-    if t.offsets.iter().all(|&o| o <= u64::from(u32::MAX)) {
-        b.begin_full(b"stco", 0, 0);
-        b.u32(t.offsets.len() as u32);
-        for &o in t.offsets {
-            b.u32(o as u32);
-        }
-    } else {
-        b.begin_full(b"co64", 0, 0);
-        b.u32(t.offsets.len() as u32);
-        for &o in t.offsets {
-            b.u64(o);
-        }
-    }
-    b.end()?;
-
-    b.end()?; // stbl
-    b.end()?; // minf
-    b.end()?; // mdia
-    b.end()?; // trak
-    b.end()?; // moov
-    Ok(b.buf)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1053,17 +626,5 @@ mod tests {
             v_offset: (0, 1),
         };
         assert_eq!(zero_den.crop(320, 240), None);
-    }
-
-    #[test]
-    fn child_boxes_reject_overruns() {
-        let data = [0, 0, 0, 16, b'f', b'r', b'e', b'e', 0, 0, 0, 0];
-        let r: Vec<_> = child_boxes(&data, false).collect();
-        assert!(r[0].as_ref().is_err_and(|e| e.contains("claims 16 bytes")));
-        let data = [0, 0, 0, 4, b'f', b'r', b'e', b'e'];
-        assert!(child_boxes(&data, false).next().is_some_and(|r| r.is_err()));
-        let data = [0, 0, 0, 8, b'f', b'r', b'e', b'e', 0, 0, 0, 0];
-        let r: Vec<_> = child_boxes(&data, true).collect();
-        assert_eq!(r.len(), 1);
     }
 }
