@@ -1,7 +1,7 @@
 //! AprilTag detection, with corners converted once, here, to the project's convention.
 //!
 //! Pipeline per pass (the AprilTag 3 algorithm; our own implementation in `segment.rs` and
-//! `quad.rs`, the tag family code tables from `kornia-apriltag`): adaptive binarisation,
+//! `quad.rs`, the tag family code tables vendored in `family.rs`): adaptive binarisation,
 //! connected components, boundary clusters between black and white components, a quad fit
 //! per cluster, decoding on the full-resolution image. On the conformance photos its quads
 //! and corners agree with the AprilTag C library's to a median of 0.0003 px (47/47 tags; see

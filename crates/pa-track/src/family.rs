@@ -258,22 +258,6 @@ impl TagFamily {
             TagFamily::TagStandard52h13 => &TAGSTANDARD52H13,
         }
     }
-
-    /// The data file name of the family's codes (`data/tags/<name>.bin`).
-    #[cfg(test)]
-    pub(crate) fn data_file(self) -> &'static str {
-        match self {
-            TagFamily::Tag36h11 => "tag36h11",
-            TagFamily::Tag36h10 => "tag36h10",
-            TagFamily::Tag25h9 => "tag25h9",
-            TagFamily::Tag16h5 => "tag16h5",
-            TagFamily::TagCircle21h7 => "tagcircle21h7",
-            TagFamily::TagCircle49h12 => "tagcircle49h12",
-            TagFamily::TagCustom48h12 => "tagcustom48h12",
-            TagFamily::TagStandard41h12 => "tagstandard41h12",
-            TagFamily::TagStandard52h13 => "tagstandard52h13",
-        }
-    }
 }
 
 /// Hamming-radius lookup of observed codes in a family's code table (see the module docs).

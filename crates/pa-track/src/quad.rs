@@ -1,12 +1,13 @@
-//! Our own AprilTag quad fitting and decoding, on kornia-apriltag's binarisation and
-//! connected-component clusters.
+//! Our own AprilTag quad fitting and decoding, on our binarisation and connected-component
+//! clusters (`segment.rs`).
 //!
-//! kornia-apriltag 0.2 follows the AprilTag C library's pipeline but departs from it in ways
-//! that cost small, tilted tags (see `examples/conf_diag.rs`): its quad fit weights the
-//! boundary points by the gradient of the *binarised* image (the C library: of the grey
-//! image), keeps duplicate boundary points, and its bit sampling is half a pixel off the C
-//! library's bilinear sampling. On the conformance photos its quads are 0.1-0.6 px off the
-//! C library's and 7 of 47 tags fail to decode. The stages here follow the published
+//! kornia-apriltag 0.2 (a dependency until its family tables were vendored, see `family.rs`)
+//! follows the AprilTag C library's pipeline but departs from it in ways that cost small,
+//! tilted tags: its quad fit weights the boundary points by the gradient of the *binarised*
+//! image (the C library: of the grey image), keeps duplicate boundary points, and its bit
+//! sampling is half a pixel off the C library's bilinear sampling. On the conformance photos
+//! its quads were 0.1-0.6 px off the C library's and 7 of 47 tags failed to decode.
+//! The stages here follow the published
 //! algorithm (Olson 2011, Wang & Olson 2016; AprilTag 3 `fit_quad`, `quad_decode`) in double
 //! precision:
 //!
