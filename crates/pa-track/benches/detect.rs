@@ -4,8 +4,8 @@
 //! tracker's steady-state update (region-of-interest search once tracked, then pose and
 //! filtering). Skips with a message when no wgpu adapter is available.
 //!
-//! `cargo bench -p pa-track` (add `-- --quick` for a rough figure in seconds). kornia-apriltag
-//! uses rayon: `RAYON_NUM_THREADS=1` measures one core.
+//! `cargo bench -p pa-track` (add `-- --quick` for a rough figure in seconds). The detector's
+//! passes run in parallel (rayon): `RAYON_NUM_THREADS=1` measures one core.
 
 use std::time::Duration;
 

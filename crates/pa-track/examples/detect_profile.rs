@@ -1,8 +1,7 @@
 //! Profiling loop (e.g. under `perf record`) for the full-frame search, detection only:
-//! `cargo run --release -p pa-track --example detect_profile -- [W H ITER [d|c|t] [k]]`
-//! (`d` default settings, `c` c_reference, `t` thorough; `k` times kornia-apriltag 0.2's own
-//! decoder per stage instead, for comparison). Frames as in `track_bench`: a tilted tag on a
-//! mildly textured, noisy background.
+//! `cargo run --release -p pa-track --example detect_profile -- [W H ITER [d|c|t]]`
+//! (`d` default settings, `c` c_reference, `t` thorough). Frames as in `track_bench`: a tilted
+//! tag on a mildly textured, noisy background.
 
 use std::time::Instant;
 
@@ -130,33 +129,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )
         })
         .collect();
-    if args.get(5).is_some_and(|s| s == "k") {
-        // kornia-apriltag's own decoder, per-stage times.
-        use kornia_apriltag::{family::TagFamilyKind, AprilTagDecoder, DecodeTagsConfig};
-        for dec_f in [1usize, 2] {
-            let mut kc = DecodeTagsConfig::new(vec![TagFamilyKind::Tag36H11])?;
-            kc.downscale_factor = dec_f;
-            kc.threshold_split = 0.5;
-            kc.min_white_black_difference = cfg.min_white_black_diff;
-            let size = kornia_image::ImageSize {
-                width: w as usize,
-                height: h as usize,
-            };
-            let mut kd = AprilTagDecoder::new(kc, size)?;
-            let mut acc = [0u64; 6];
-            for i in 0..iters {
-                let img =
-                    kornia_image::Image::<u8, 1>::new(size, frames[i % frames.len()].data.clone())?;
-                let (_, us) = kd.decode_timed(&img)?;
-                kd.clear();
-                for k in 0..6 {
-                    acc[k] += us[k];
-                }
-            }
-            println!("kornia dec {dec_f}: us per frame [decimate, threshold, cc, gradient, fit, decode] = {:?}", acc.map(|a| a / iters as u64));
-        }
-        return Ok(());
-    }
     let mut det = Detector::new(cfg)?;
     let mut n = 0;
     let t0 = Instant::now();

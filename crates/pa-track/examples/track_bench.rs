@@ -6,7 +6,7 @@
 //! and +-3 grey levels of noise), like a prop on a table. "full" is a full-frame search with the
 //! default detector (decimation 1 + 2, min_white_black_diff 20); "region" is the tracker's region-of-interest search (the
 //! last box plus 50 % margin); "thorough" adds the 2x-upsampled pass. Pose = IPPE + LM for the
-//! one tag. The detector runs on one thread (kornia-apriltag only supplies the family tables);
+//! one tag. The detector runs on one thread (the two passes of a frame may run in parallel);
 //! `RAYON_NUM_THREADS=1` is harmless and keeps the comparison with older runs fair.
 
 use std::time::Instant;

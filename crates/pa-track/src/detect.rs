@@ -1,7 +1,7 @@
 //! AprilTag detection, with corners converted once, here, to the project's convention.
 //!
 //! Pipeline per pass (the AprilTag 3 algorithm; our own implementation in `segment.rs` and
-//! `quad.rs`, the tag family code tables from `kornia-apriltag`): adaptive binarisation,
+//! `quad.rs`, the tag family code tables vendored in `family.rs`): adaptive binarisation,
 //! connected components, boundary clusters between black and white components, a quad fit
 //! per cluster, decoding on the full-resolution image. On the conformance photos its quads
 //! and corners agree with the AprilTag C library's to a median of 0.0003 px (47/47 tags; see
@@ -21,13 +21,13 @@
 use std::collections::HashMap;
 
 use glam::DVec2;
-use kornia_apriltag::family::TagFamilyKind;
 
 use crate::quad::{
     decode, fit_quad, refine_edges_reference, FamilyCodes, FitScratch, Homography, QuadParams,
 };
 use crate::segment::{threshold, Segmenter};
 
+use crate::family::DEFAULT_MAX_HAMMING;
 use crate::TrackError;
 
 /// An 8-bit greyscale image, row-major, `data.len() == width * height`.
@@ -210,20 +210,6 @@ impl TagFamily {
             TagFamily::TagCustom48h12 => "tagCustom48h12",
             TagFamily::TagStandard41h12 => "tagStandard41h12",
             TagFamily::TagStandard52h13 => "tagStandard52h13",
-        }
-    }
-
-    pub(crate) fn kind(self) -> TagFamilyKind {
-        match self {
-            TagFamily::Tag36h11 => TagFamilyKind::Tag36H11,
-            TagFamily::Tag36h10 => TagFamilyKind::Tag36H10,
-            TagFamily::Tag25h9 => TagFamilyKind::Tag25H9,
-            TagFamily::Tag16h5 => TagFamilyKind::Tag16H5,
-            TagFamily::TagCircle21h7 => TagFamilyKind::TagCircle21H7,
-            TagFamily::TagCircle49h12 => TagFamilyKind::TagCircle49H12,
-            TagFamily::TagCustom48h12 => TagFamilyKind::TagCustom48H12,
-            TagFamily::TagStandard41h12 => TagFamilyKind::TagStandard41H12,
-            TagFamily::TagStandard52h13 => TagFamilyKind::TagStandard52H13,
         }
     }
 }
@@ -427,13 +413,18 @@ impl Detector {
             if families.iter().any(|(g, _)| g == f) {
                 continue;
             }
-            let mut fam = kornia_apriltag::family::TagFamily::try_from(&f.kind())
-                .map_err(TrackError::detector)?;
-            if config.max_hamming != fam.max_hamming() {
-                fam.set_max_hamming(config.max_hamming)
-                    .map_err(TrackError::detector)?;
+            let def = f.def();
+            // As kornia-apriltag did: a radius other than the default must be safe.
+            if config.max_hamming != DEFAULT_MAX_HAMMING
+                && config.max_hamming > def.max_safe_hamming()
+            {
+                return Err(TrackError::MaxHammingTooLarge {
+                    max_hamming: config.max_hamming,
+                    min_hamming: def.min_hamming,
+                    max_safe: def.max_safe_hamming(),
+                });
             }
-            families.push((*f, FamilyCodes::new(&fam)));
+            families.push((*f, FamilyCodes::new(def, config.max_hamming)));
         }
         Ok(Self {
             config,

@@ -15,9 +15,10 @@
 //! [`DetectorConfig::thorough`] adds a pass on the frame upsampled 2x (bilinear, pixel-centre
 //! aligned; corners mapped back by `x = (u + 0.5) / 2 - 0.5`) for very small tags; it costs
 //! several times a normal pass. The quad fit and decoding are our own implementation of the
-//! AprilTag 3 algorithm (`kornia-apriltag` supplies the family code tables). On the
-//! conformance photos (47 tags, C library reference, JPEG luma): `default()` and
-//! `c_reference()` both find 47/47 with a median corner difference of 0.0003 px.
+//! AprilTag 3 algorithm, with the AprilTag library's family code tables vendored under
+//! `data/tags/` (module `family`). On the conformance photos (47 tags, C library reference,
+//! JPEG luma): `default()` and `c_reference()` both find 47/47 with a median corner
+//! difference of 0.0003 px.
 //!
 //! # Conventions
 //!
@@ -48,6 +49,7 @@
 
 pub mod board;
 pub mod detect;
+mod family;
 pub mod filter;
 pub mod marker;
 pub mod pose;
@@ -81,16 +83,15 @@ pub enum TrackError {
     /// Invalid settings.
     #[error("invalid configuration: {0}")]
     Config(String),
-    /// The detector library failed.
-    #[error("AprilTag detector: {0}")]
-    Detector(String),
+    /// A Hamming radius (other than the default 2) that could confuse two codes of a
+    /// configured family: it must be at most `(min_hamming - 1) / 2`.
+    #[error("AprilTag detector: max_hamming {max_hamming} exceeds safe limit for this tag family (min_hamming={min_hamming}, max safe value is {max_safe})")]
+    MaxHammingTooLarge {
+        max_hamming: u8,
+        min_hamming: u8,
+        max_safe: u8,
+    },
     /// Pose estimation could not run on these points.
     #[error("pose estimation failed: {0}")]
     Pose(String),
-}
-
-impl TrackError {
-    pub(crate) fn detector(e: impl std::fmt::Display) -> Self {
-        TrackError::Detector(e.to_string())
-    }
 }

@@ -1,8 +1,6 @@
 //! Canonical tag images (the bit patterns of a family, as the AprilTag C library's
 //! `apriltag_to_image` draws them), for printing markers.
 
-use kornia_apriltag::family::TagFamily as KTagFamily;
-
 use crate::{GrayImage, TagFamily, TrackError};
 
 /// Geometry of a family's printed tag, in cells.
@@ -18,28 +16,24 @@ pub struct FamilyLayout {
     pub id_count: u32,
 }
 
-fn family_table(family: TagFamily) -> Result<KTagFamily, TrackError> {
-    KTagFamily::try_from(family.kind()).map_err(TrackError::detector)
-}
-
 /// The layout of a family.
 pub fn family_layout(family: TagFamily) -> Result<FamilyLayout, TrackError> {
-    let f = family_table(family)?;
+    let f = family.def();
     Ok(FamilyLayout {
         total_cells: f.total_width as u32,
         border_cells: f.width_at_border as u32,
-        id_count: f.code_data.len() as u32,
+        id_count: f.count as u32,
     })
 }
 
 /// The canonical tag image, one pixel per cell (`total_cells` square): black 0, white 255.
 /// Pixel-identical to the apriltag-imgs PNGs.
 pub fn marker_cells(family: TagFamily, id: u32) -> Result<GrayImage, TrackError> {
-    let f = family_table(family)?;
-    let code = *f.code_data.get(id as usize).ok_or(TrackError::UnknownId {
+    let f = family.def();
+    let code = *f.codes().get(id as usize).ok_or(TrackError::UnknownId {
         family,
         id,
-        count: f.code_data.len() as u32,
+        count: f.count as u32,
     })? as u64;
     let tw = f.total_width;
     let mut img = GrayImage::filled(tw as u32, tw as u32, 0);

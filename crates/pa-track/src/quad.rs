@@ -1,12 +1,13 @@
-//! Our own AprilTag quad fitting and decoding, on kornia-apriltag's binarisation and
-//! connected-component clusters.
+//! Our own AprilTag quad fitting and decoding, on our binarisation and connected-component
+//! clusters (`segment.rs`).
 //!
-//! kornia-apriltag 0.2 follows the AprilTag C library's pipeline but departs from it in ways
-//! that cost small, tilted tags (see `examples/conf_diag.rs`): its quad fit weights the
-//! boundary points by the gradient of the *binarised* image (the C library: of the grey
-//! image), keeps duplicate boundary points, and its bit sampling is half a pixel off the C
-//! library's bilinear sampling. On the conformance photos its quads are 0.1-0.6 px off the
-//! C library's and 7 of 47 tags fail to decode. The stages here follow the published
+//! kornia-apriltag 0.2 (a dependency until its family tables were vendored, see `family.rs`)
+//! follows the AprilTag C library's pipeline but departs from it in ways that cost small,
+//! tilted tags: its quad fit weights the boundary points by the gradient of the *binarised*
+//! image (the C library: of the grey image), keeps duplicate boundary points, and its bit
+//! sampling is half a pixel off the C library's bilinear sampling. On the conformance photos
+//! its quads were 0.1-0.6 px off the C library's and 7 of 47 tags failed to decode.
+//! The stages here follow the published
 //! algorithm (Olson 2011, Wang & Olson 2016; AprilTag 3 `fit_quad`, `quad_decode`) in double
 //! precision:
 //!
@@ -24,7 +25,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use glam::DVec2;
-use kornia_apriltag::{decoder::QuickDecode, family::TagFamily as KFamily};
+
+use crate::family::{FamilyDef, QuickDecode};
 
 /// A boundary point between a black and a white component, at twice the pixel resolution
 /// (`x = 2 * px + dx`), with the direction towards white.
@@ -499,7 +501,7 @@ impl Homography {
     }
 }
 
-/// A tag family's layout and code table, taken from kornia-apriltag's definitions.
+/// A tag family's layout, code table and lookup within the detector's Hamming radius.
 pub(crate) struct FamilyCodes {
     width_at_border: usize,
     total_width: usize,
@@ -512,16 +514,17 @@ pub(crate) struct FamilyCodes {
 }
 
 impl FamilyCodes {
-    pub fn new(f: &KFamily) -> Self {
+    pub fn new(f: &FamilyDef, max_hamming: u8) -> Self {
+        let codes = f.codes();
         Self {
             width_at_border: f.width_at_border,
             total_width: f.total_width,
             reversed_border: f.reversed_border,
             nbits: f.nbits,
-            bit_x: f.bit_x.clone(),
-            bit_y: f.bit_y.clone(),
-            codes: f.code_data.clone(),
-            quick: f.quick_decode.clone(),
+            bit_x: f.bit_x.to_vec(),
+            bit_y: f.bit_y.to_vec(),
+            quick: QuickDecode::new(f.nbits, &codes, max_hamming),
+            codes,
         }
     }
 
@@ -543,8 +546,8 @@ impl FamilyCodes {
     /// `(id, hamming, rotation)` of the code, trying the four rotations.
     fn lookup(&self, mut rcode: usize) -> Option<(u16, u8, u8)> {
         for r in 0..4u8 {
-            if let Some(e) = self.quick.decode(rcode, &self.codes) {
-                return Some((e.id, e.hamming, r));
+            if let Some((id, hamming)) = self.quick.decode(rcode, &self.codes) {
+                return Some((id, hamming, r));
             }
             rcode = self.rotate90(rcode);
         }
