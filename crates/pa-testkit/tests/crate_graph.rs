@@ -84,6 +84,11 @@ const ALLOWED: &[(&str, &[&str], &str)] = &[
         ],
         "the scene generator drives the pipeline on the built-in set",
     ),
+    (
+        "pa-overlay",
+        &["pa-camera", "pa-track"],
+        "CPU drawing for people (preview overlays, marker sheets) needs only the camera and the tag families",
+    ),
     ("pa-testkit", &[], "test helpers stand alone"),
     ("pa-fuzz", ANY_LIBRARY, "fuzz targets may call any library"),
     (BINARY, ANY_LIBRARY, "the binary wires everything"),
@@ -120,6 +125,7 @@ const GPU_FREE: &[&str] = &[
     "pa-diminish",
     "pa-video",
     "pa-calib",
+    "pa-overlay",
     "pa-testkit",
 ];
 
