@@ -89,6 +89,11 @@ const ALLOWED: &[(&str, &[&str], &str)] = &[
         &["pa-io", "pa-camera"],
         "reports take plain numbers: no renderer, no pipeline",
     ),
+    (
+        "pa-overlay",
+        &["pa-camera", "pa-track"],
+        "CPU drawing for people (preview overlays, marker sheets) needs only the camera and the tag families",
+    ),
     ("pa-testkit", &[], "test helpers stand alone"),
     ("pa-fuzz", ANY_LIBRARY, "fuzz targets may call any library"),
     (BINARY, ANY_LIBRARY, "the binary wires everything"),
@@ -126,6 +131,7 @@ const GPU_FREE: &[&str] = &[
     "pa-video",
     "pa-calib",
     "pa-report",
+    "pa-overlay",
     "pa-testkit",
 ];
 

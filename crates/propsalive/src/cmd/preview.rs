@@ -36,15 +36,11 @@
 //!   DIR` writes every presented canvas (`presented.png`) and where it went on screen
 //!   (`presented.json`, with `"final": true` on the last one).
 
-mod draw;
-mod hud;
 mod keys;
-mod layout;
 mod output;
 mod present;
 mod setup;
 mod source;
-mod state;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -61,9 +57,14 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::ModifiersState;
 use winit::window::{Window, WindowId};
 
+// The window-free parts (drawing, status bar, state machine, layout) live in pa-overlay; the
+// children `source`, `setup`, `present` and `output` reach them as `super::draw` etc.
+use pa_overlay::action::{repeats, Action, HELP};
+use pa_overlay::{draw, hud, layout, state};
+
 use draw::Image;
 use hud::{BarLayout, Status};
-use keys::{action_for, repeats, Action, HELP};
+use keys::action_for;
 use layout::Rect;
 use output::{Captures, JsonLog, Recording};
 use present::{Presented, Presenter};
@@ -426,7 +427,13 @@ impl Preview {
             playing: self.state.playing,
             key_name: key.name.clone(),
             key_frame: key.frame,
-            timings: out.timings,
+            timings: hud::StageTimings {
+                track_ms: out.timings.track_ms,
+                animate_ms: out.timings.animate_ms,
+                texture_ms: out.timings.texture_ms,
+                diminish_ms: out.timings.diminish_ms,
+                composite_ms: out.timings.composite_ms,
+            },
             flags: self.state.flags(),
             recorded: self.recording.as_ref().map(|r| r.frames),
         }

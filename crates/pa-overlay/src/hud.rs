@@ -6,10 +6,21 @@
 
 use glam::{DVec3, Mat4, Vec3};
 use pa_camera::CameraModel;
-use pa_pipeline::ar::StageTimings;
 
-use super::draw::{fit_text, text_width, Image, Rgb, BAR, BLUE, GLYPH, GREEN, RED, WHITE, YELLOW};
-use super::keys::HELP;
+use crate::action::HELP;
+use crate::draw::{fit_text, text_width, Image, Rgb, BAR, BLUE, GLYPH, GREEN, RED, WHITE, YELLOW};
+
+/// The pipeline's stage timings as the status bar shows them, ms (the fields of
+/// `pa_pipeline::ar::StageTimings`, which this GPU-free crate does not depend on; the preview
+/// copies them over).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings {
+    pub track_ms: f64,
+    pub animate_ms: f64,
+    pub texture_ms: f64,
+    pub diminish_ms: f64,
+    pub composite_ms: f64,
+}
 
 /// Font scale for a canvas width: 1 (8 px glyphs) up to 1000 px wide, then 2, ...
 pub fn text_scale(width: u32) -> u32 {

@@ -3,7 +3,8 @@
 //! [`Action`] into the new state and, for actions with side effects (files, quitting), an
 //! [`Effect`] the window code carries out. Pure, tested without a window.
 
-use super::keys::Action;
+use crate::action::Action;
+use crate::OverlayError;
 
 /// A key pose: an animation frame that exists as a physical prop.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -29,7 +30,7 @@ pub struct Overlays {
 
 impl Overlays {
     /// Overlays named on the command line (`axes`, `masks`, `onion`, `lineup`, `help`).
-    pub fn parse(names: &[String]) -> Result<Self, String> {
+    pub fn parse(names: &[String]) -> Result<Self, OverlayError> {
         let mut o = Self::default();
         for n in names {
             match n.trim().to_ascii_lowercase().as_str() {
@@ -40,9 +41,9 @@ impl Overlays {
                 "help" => o.help = true,
                 "" => {}
                 other => {
-                    return Err(format!(
-                        "unknown overlay {other:?} (axes, masks, onion, lineup, help)"
-                    ))
+                    return Err(OverlayError::UnknownOverlay {
+                        name: other.to_string(),
+                    })
                 }
             }
         }
@@ -344,7 +345,12 @@ mod tests {
         assert!(o.axes && o.onion && o.line_up && !o.masks && !o.help);
         assert_eq!(Overlays::parse(&[]).unwrap(), Overlays::default());
         let e = Overlays::parse(&names(&["axes", "bogus"])).unwrap_err();
+        let e = e.to_string();
         assert!(e.contains("\"bogus\""), "{e}");
+        assert_eq!(
+            e,
+            "unknown overlay \"bogus\" (axes, masks, onion, lineup, help)"
+        );
     }
 
     #[test]
