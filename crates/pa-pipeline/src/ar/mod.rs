@@ -15,6 +15,8 @@
 mod config;
 mod fill;
 mod frame;
+#[cfg(test)]
+mod tests;
 mod texture;
 
 use std::time::Instant;
