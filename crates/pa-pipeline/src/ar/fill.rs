@@ -73,7 +73,7 @@ impl ArPipeline {
         }
         let fill_mask = match &self.fill_mask {
             Some((m, _)) => m,
-            None => return Err(ArError::Config("fill mask missing".into())),
+            None => return Err(ArError::FillMaskMissing),
         };
         let plate_h = match (&self.plate, self.settings.fill) {
             (Some((_, plate_pose)), Fill::CleanPlate) => Some(Homography::from_dmat3(

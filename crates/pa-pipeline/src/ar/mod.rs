@@ -56,8 +56,15 @@ pub enum ArError {
     Diminish(#[from] pa_diminish::DiminishError),
     #[error("CPU rendering: {0}")]
     Raster(#[from] pa_raster::RasterError),
-    #[error("{0}")]
-    Config(String),
+    /// The model has animations but none with this index.
+    #[error("no animation {animation}")]
+    NoAnimation { animation: usize },
+    /// [`ArPipeline::process`] on a pipeline made without a tracker.
+    #[error("no tracker: use process_with_pose")]
+    NoTracker,
+    /// The fill mask was not made before the fill (an internal invariant).
+    #[error("fill mask missing")]
+    FillMaskMissing,
 }
 
 /// Everything the pipeline keeps between frames.
@@ -100,7 +107,7 @@ impl Prop {
         marker_from_prop: Mat4,
     ) -> Result<Self, ArError> {
         if animation >= model.animations.len() && !model.animations.is_empty() {
-            return Err(ArError::Config(format!("no animation {animation}")));
+            return Err(ArError::NoAnimation { animation });
         }
         let twin = GpuTwin::upload(renderer, &model)?;
         Ok(Self {
@@ -230,7 +237,7 @@ impl ArPipeline {
                     out.raw.map(|r| r.rms_px),
                 )
             }
-            None => return Err(ArError::Config("no tracker: use process_with_pose".into())),
+            None => return Err(ArError::NoTracker),
         };
         let track_ms = ms(t0);
         let mut frame = self.render_frame(renderer, rgba8, width, height, times, pose)?;

@@ -239,3 +239,16 @@ fn mask_of_vis_reads_only_the_dirty_rectangle() {
     let set: Vec<usize> = (0..30).filter(|&i| mask[i]).collect();
     assert_eq!(set, vec![6 + 2, 2 * 6 + 4, 3 * 6 + 1]);
 }
+
+#[test]
+fn configuration_errors_keep_their_messages() {
+    assert_eq!(
+        ArError::NoAnimation { animation: 3 }.to_string(),
+        "no animation 3"
+    );
+    assert_eq!(
+        ArError::NoTracker.to_string(),
+        "no tracker: use process_with_pose"
+    );
+    assert_eq!(ArError::FillMaskMissing.to_string(), "fill mask missing");
+}
