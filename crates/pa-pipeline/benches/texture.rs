@@ -18,7 +18,7 @@ use criterion::Criterion;
 use glam::Mat4;
 use pa_camera::CameraModel;
 use pa_model::{anim, Model};
-use pa_pipeline::ar::{ArPipeline, ArSettings, RenderPath};
+use pa_pipeline::ar::{ArPipeline, ArSettings, FrameTimes, RenderPath};
 use pa_pipeline::cpu_twin::CpuTwin;
 use pa_pipeline::GpuTwin;
 use pa_raster::{CpuRenderer, FrameCamera, FrameSampler, LiveParams, RasterCamera, Shading};
@@ -173,8 +173,10 @@ fn main() {
                         &f.input.rgba8,
                         W,
                         H,
-                        f.time_s,
-                        0.0,
+                        FrameTimes {
+                            animation_s: f.time_s,
+                            key_pose_s: 0.0,
+                        },
                         camera_from_marker,
                     )
                     .expect("frame")

@@ -293,7 +293,7 @@ fn cpu_path_draws_a_model_without_normals_as_with_flat_normals_written_out() {
 /// normals written out. Needs a wgpu adapter (the scene's frames are rendered on the GPU).
 #[test]
 fn pipeline_output_without_normals_is_the_output_with_flat_normals_written_out() {
-    use pa_pipeline::ar::{ArPipeline, ArSettings, RenderPath};
+    use pa_pipeline::ar::{ArPipeline, ArSettings, FrameTimes, RenderPath};
     use pa_render::Renderer;
     use pa_scene::{Scene, SceneSpec};
 
@@ -354,8 +354,10 @@ fn pipeline_output_without_normals_is_the_output_with_flat_normals_written_out()
                         &f.input.rgba8,
                         f.input.width,
                         f.input.height,
-                        f.time_s,
-                        key_time,
+                        FrameTimes {
+                            animation_s: f.time_s,
+                            key_pose_s: key_time,
+                        },
                         f.camera_from_marker,
                     )
                     .expect("process")

@@ -56,8 +56,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &f.input.rgba8,
                 w,
                 h,
-                f.time_s,
-                0.0,
+                pa_pipeline::ar::FrameTimes {
+                    animation_s: f.time_s,
+                    key_pose_s: 0.0,
+                },
                 k as f64 / 24.0,
             )
             .map_err(|e| e.to_string())?;

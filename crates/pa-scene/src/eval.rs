@@ -14,7 +14,7 @@
 use glam::{Mat4, Quat};
 use pa_camera::CameraModel;
 use pa_model::{anim, skin};
-use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, StageTimings};
+use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, FrameTimes, StageTimings};
 use pa_pipeline::metrics::{psnr_region, ssim_region};
 use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
@@ -185,8 +185,10 @@ pub fn run_scene<E: From<SceneError>>(
                 &f.input.rgba8,
                 f.input.width,
                 f.input.height,
-                f.time_s,
-                key_time,
+                FrameTimes {
+                    animation_s: f.time_s,
+                    key_pose_s: key_time,
+                },
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;

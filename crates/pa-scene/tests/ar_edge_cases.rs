@@ -3,7 +3,7 @@
 //! nothing filled), and a frame of the wrong size (a typed error naming the sizes).
 
 use glam::Vec3;
-use pa_pipeline::ar::{ArError, ArSettings};
+use pa_pipeline::ar::{ArError, ArSettings, FrameTimes};
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec};
@@ -27,6 +27,14 @@ fn setup() -> Option<(Renderer, Scene)> {
     Some((renderer, scene))
 }
 
+/// The in-between at `animation_s` of the key pose at 0 s.
+fn times(animation_s: f32) -> FrameTimes {
+    FrameTimes {
+        animation_s,
+        key_pose_s: 0.0,
+    }
+}
+
 #[test]
 fn tracking_lost_mid_shot_passes_the_frame_through() {
     let Some((mut renderer, scene)) = setup() else {
@@ -43,8 +51,7 @@ fn tracking_lost_mid_shot_passes_the_frame_through() {
                 &f.input.rgba8,
                 320,
                 180,
-                f.time_s,
-                0.0,
+                times(f.time_s),
                 i as f64 / 24.0,
             )
             .expect("process");
@@ -60,8 +67,7 @@ fn tracking_lost_mid_shot_passes_the_frame_through() {
                 &blank,
                 320,
                 180,
-                0.5,
-                0.0,
+                times(0.5),
                 (8 + k) as f64 / 24.0,
             )
             .expect("process");
@@ -95,7 +101,7 @@ fn prop_outside_the_frame_draws_and_fills_nothing() {
     )
     .expect("camera");
     let out = p
-        .process_with_pose(&mut renderer, &f.input.rgba8, 320, 180, 0.5, 0.0, away)
+        .process_with_pose(&mut renderer, &f.input.rgba8, 320, 180, times(0.5), away)
         .expect("process");
     assert!(out.twin_mask.iter().all(|&m| !m));
     assert!(out.key_mask.iter().all(|&m| !m));
@@ -109,7 +115,7 @@ fn wrong_frame_size_is_a_typed_error() {
     };
     let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours()).expect("pipeline");
     let e = p
-        .process(&mut renderer, &[0u8; 100], 320, 180, 0.0, 0.0, 0.0)
+        .process(&mut renderer, &[0u8; 100], 320, 180, times(0.0), 0.0)
         .expect_err("short buffer");
     assert!(matches!(e, ArError::BadFrame { .. }));
     let msg = e.to_string();

@@ -101,7 +101,11 @@ fn cpu_path_matches_the_gpu_path() {
         for i in [0u32, 14, 27, 38] {
             let f = scene.frame(&mut renderer, i).expect("frame");
             let run = |p: &mut pa_pipeline::ar::ArPipeline, r: &mut Renderer| {
-                p.process_with_pose(r, &f.input.rgba8, W, H, f.time_s, 0.0, f.camera_from_marker)
+                let times = pa_pipeline::ar::FrameTimes {
+                    animation_s: f.time_s,
+                    key_pose_s: 0.0,
+                };
+                p.process_with_pose(r, &f.input.rgba8, W, H, times, f.camera_from_marker)
                     .expect("process")
             };
             let a = run(&mut gpu, &mut renderer);

@@ -33,8 +33,10 @@ fn run(renderer: &mut Renderer, scene: &Scene, settings: ArSettings, path: Rende
         &f.input.rgba8,
         W,
         H,
-        f.time_s,
-        0.0,
+        pa_pipeline::ar::FrameTimes {
+            animation_s: f.time_s,
+            key_pose_s: 0.0,
+        },
         f.camera_from_marker,
     )
     .expect("process")

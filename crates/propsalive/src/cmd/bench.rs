@@ -338,8 +338,10 @@ fn run_frame(
         &f.input.rgba8,
         w,
         h,
-        f.time_s,
-        key_time,
+        pa_pipeline::ar::FrameTimes {
+            animation_s: f.time_s,
+            key_pose_s: key_time,
+        },
         frame_time,
     )?;
     let tracked = out.camera_from_marker.is_some();
@@ -351,8 +353,10 @@ fn run_frame(
             &f.input.rgba8,
             w,
             h,
-            f.time_s,
-            key_time,
+            pa_pipeline::ar::FrameTimes {
+                animation_s: f.time_s,
+                key_pose_s: key_time,
+            },
             f.camera_from_marker,
         )?;
         out.timings.track_ms = track_ms;

@@ -344,8 +344,9 @@ impl Preview {
         h: u32,
         frames: &[u32],
     ) -> Result<Vec<Vec<bool>>> {
+        let prop = self.pipeline.first_prop();
         if self.onion_twin.is_none() {
-            self.onion_twin = Some(GpuTwin::upload(&mut self.renderer, &self.pipeline.model)?);
+            self.onion_twin = Some(GpuTwin::upload(&mut self.renderer, &prop.model)?);
         }
         let Some(twin) = &self.onion_twin else {
             return Ok(Vec::new());
@@ -358,12 +359,8 @@ impl Preview {
         };
         let mut masks = Vec::new();
         for &f in frames {
-            let pose = pa_model::anim::sample(
-                &self.pipeline.model,
-                self.pipeline.animation,
-                f as f32 / self.fps,
-            );
-            let tf = twin.frame(&self.pipeline.model, &pose, self.pipeline.marker_from_prop);
+            let pose = pa_model::anim::sample(&prop.model, prop.animation, f as f32 / self.fps);
+            let tf = twin.frame(&prop.model, &pose, prop.marker_from_prop);
             let r = self
                 .renderer
                 .render(&camera, None, &twin.draws(&tf), [0.0; 4], w, h)?;
@@ -486,8 +483,10 @@ impl Preview {
             &frame.rgba8,
             frame.width,
             frame.height,
-            anim_time_s,
-            key_time_s,
+            pa_pipeline::ar::FrameTimes {
+                animation_s: anim_time_s,
+                key_pose_s: key_time_s,
+            },
             frame.time_s,
         )?;
         let t_overlay = Instant::now();

@@ -1007,8 +1007,10 @@ impl FrameProcessor for PipelineProcessor<'_> {
                     rgba8,
                     w,
                     h,
-                    anim_frame as f32 / cfg.fps,
-                    cfg.key_time_s,
+                    pa_pipeline::ar::FrameTimes {
+                        animation_s: anim_frame as f32 / cfg.fps,
+                        key_pose_s: cfg.key_time_s,
+                    },
                     p,
                 )?;
                 let passes = f.passes.map(|ps| FramePasses {

@@ -1,0 +1,194 @@
+//! The diminish stage's wiring: the fill mask from the key-pose silhouette (dilated, minus the
+//! twin's opaque interior), the fill method of the settings, and the clean plate's homography.
+
+use glam::{DMat3, DVec3, Mat4};
+use pa_camera::CameraModel;
+use pa_diminish::{
+    dilate_in_bbox, CleanPlate, DilateShape, FillMethod, Homography, ImageRgba8, Mask,
+    RayDirections, Rect,
+};
+
+use super::texture::{Bbox, Textured};
+use super::{ArError, ArPipeline, Fill, FrameView};
+
+impl ArPipeline {
+    /// Diminish: fills the dilated key silhouette in a copy of the frame. The fill mask is
+    /// kept between frames; only the region written last time is cleared.
+    pub(super) fn diminish(
+        &mut self,
+        view: &FrameView<'_>,
+        textured: &Textured,
+    ) -> Result<ImageRgba8, ArError> {
+        let FrameView {
+            rgba8,
+            width,
+            height,
+            camera_model,
+            camera_from_marker,
+            ..
+        } = *view;
+        let Textured {
+            key_mask,
+            key_bbox,
+            twin_mask,
+            twin_bbox,
+            ..
+        } = textured;
+        let (key_bbox, twin_bbox) = (*key_bbox, *twin_bbox);
+        let mut background = ImageRgba8::new(width, height, rgba8.to_vec())?;
+        let fill_mask = match &mut self.fill_mask {
+            Some((m, last)) if m.size() == (width, height) => {
+                if let Some(r) = last.take() {
+                    clear_rect(m, r);
+                }
+                m
+            }
+            slot => &mut slot.insert((Mask::zeros(width, height)?, None)).0,
+        };
+        let mut fill_region = None;
+        if let Some((x0, y0, x1, y1)) = key_bbox {
+            let w = width as usize;
+            let data = fill_mask.as_mut_slice();
+            for y in y0..=y1 {
+                for i in y * w + x0..=y * w + x1 {
+                    data[i] = if key_mask[i] { Mask::SET } else { 0 };
+                }
+            }
+            let bbox = Rect::from_inclusive(x0 as u32, y0 as u32, x1 as u32, y1 as u32);
+            fill_region = Some(if self.settings.dilate_px > 0 {
+                dilate_in_bbox(fill_mask, bbox, self.settings.dilate_px, DilateShape::Disc)
+            } else {
+                bbox
+            });
+        }
+        // Where the twin's interior will cover the frame opaquely the real prop needs no
+        // removal: those pixels are hidden from the fill (rays pass through them, so every
+        // other pixel is filled exactly as before).
+        // (Not when the plate is kept as a pass: it must be clean everywhere.)
+        if let (Some(tb), Some(_), false) = (twin_bbox, fill_region, self.keep_passes) {
+            hide_twin_interior(fill_mask, twin_mask, tb, COMPOSITE_REACH_PX);
+        }
+        if let Some((_, last)) = &mut self.fill_mask {
+            *last = fill_region;
+        }
+        let fill_mask = match &self.fill_mask {
+            Some((m, _)) => m,
+            None => return Err(ArError::FillMaskMissing),
+        };
+        let plate_h = match (&self.plate, self.settings.fill) {
+            (Some((_, plate_pose)), Fill::CleanPlate) => Some(Homography::from_dmat3(
+                plane_homography(&camera_model, camera_from_marker, *plate_pose),
+            )),
+            _ => None,
+        };
+        let method = match self.settings.fill {
+            Fill::PaperRectangle => Some(FillMethod::PaperRectangle { rect: None }),
+            Fill::Rays => Some(FillMethod::Rays(RayDirections::default())),
+            Fill::CleanPlate => match (&self.plate, plate_h) {
+                (Some((plate, _)), Some(h)) => {
+                    Some(FillMethod::CleanPlate(CleanPlate::new(plate, h)))
+                }
+                _ => Some(FillMethod::Rays(RayDirections::default())),
+            },
+            Fill::None => None,
+        };
+        if let (Some(m), Some(region)) = (method, fill_region) {
+            self.diminisher
+                .fill_in_bbox(&mut background, fill_mask, region, &m)?;
+        }
+        Ok(background)
+    }
+}
+
+/// How far (Chebyshev, pixels) the composite looks around a twin pixel: its anti-aliasing
+/// window's radius ([`crate::composite`]). A twin pixel whose neighbourhood of this radius is
+/// all twin is drawn opaque, whatever the background.
+const COMPOSITE_REACH_PX: usize = 4;
+
+/// Marks as [`Mask::HIDDEN`] the set pixels of `fill` whose square neighbourhood of radius
+/// `r` lies inside the twin (pixels beyond the image count as outside). Work O(bbox).
+pub(super) fn hide_twin_interior(fill: &mut Mask, twin: &[bool], bbox: Bbox, r: usize) {
+    let (x0, y0, x1, y1) = bbox;
+    let w = fill.width() as usize;
+    let bw = x1 - x0 + 1;
+    let bh = y1 - y0 + 1;
+    // Horizontal pass: run length of twin pixels to the left and right of each pixel.
+    let mut h_ok = vec![false; bw * bh];
+    let mut left = vec![0usize; bw];
+    for ly in 0..bh {
+        let row = &twin[(y0 + ly) * w + x0..(y0 + ly) * w + x1 + 1];
+        let mut run = 0usize;
+        for (lx, &m) in row.iter().enumerate() {
+            run = if m { run + 1 } else { 0 };
+            left[lx] = run;
+        }
+        run = 0;
+        for lx in (0..bw).rev() {
+            run = if row[lx] { run + 1 } else { 0 };
+            // Twin from lx - r to lx + r (the box's edges are outside the twin).
+            h_ok[ly * bw + lx] = left[lx] > r && run > r;
+        }
+    }
+    // Vertical pass over the horizontal result.
+    let data = fill.as_mut_slice();
+    let mut up = vec![0usize; bw];
+    let mut down = vec![0usize; bw * bh];
+    for ly in (0..bh).rev() {
+        for lx in 0..bw {
+            down[ly * bw + lx] = if h_ok[ly * bw + lx] {
+                1 + if ly + 1 < bh {
+                    down[(ly + 1) * bw + lx]
+                } else {
+                    0
+                }
+            } else {
+                0
+            };
+        }
+    }
+    for ly in 0..bh {
+        for lx in 0..bw {
+            up[lx] = if h_ok[ly * bw + lx] { up[lx] + 1 } else { 0 };
+            if up[lx] > r && down[ly * bw + lx] > r {
+                let i = (y0 + ly) * w + x0 + lx;
+                if data[i] != 0 {
+                    data[i] = Mask::HIDDEN;
+                }
+            }
+        }
+    }
+}
+
+/// Clears a rectangle of a mask.
+pub(super) fn clear_rect(m: &mut Mask, r: Rect) {
+    let w = m.width() as usize;
+    let data = m.as_mut_slice();
+    for y in r.y as usize..(r.y + r.height) as usize {
+        data[y * w + r.x as usize..y * w + (r.x + r.width) as usize].fill(0);
+    }
+}
+
+/// The homography of the marker plane (z = 0) from the plate view's pixels to the current
+/// view's pixels: `H = K [r1 r2 t]_current ([r1 r2 t]_plate)^-1 K^-1` (pinhole; distortion is
+/// ignored here).
+pub fn plane_homography(camera: &CameraModel, current: Mat4, plate: Mat4) -> DMat3 {
+    let k = camera.intrinsics.matrix();
+    let plane = |m: Mat4| {
+        let m = m.as_dmat4();
+        DMat3::from_cols(
+            m.x_axis.truncate(),
+            m.y_axis.truncate(),
+            DVec3::new(m.w_axis.x, m.w_axis.y, m.w_axis.z),
+        )
+    };
+    k * plane(current) * plane(plate).inverse() * k.inverse()
+}
+
+/// The key mask as a [`Mask`] (for callers that want pa-diminish types).
+pub fn mask_from_bools(width: u32, height: u32, m: &[bool]) -> Result<Mask, ArError> {
+    Ok(Mask::new(
+        width,
+        height,
+        m.iter().map(|&b| if b { 255 } else { 0 }).collect(),
+    )?)
+}

@@ -1,0 +1,449 @@
+//! The Props Alive frame pipeline: frame -> track -> place -> animate -> texture -> diminish
+//! -> composite.
+//!
+//! [`ArPipeline::process`] takes one camera frame (sRGB RGBA8) and its [`FrameTimes`] (the
+//! animation time to show, the key pose's), and returns the composited frame with the tracking state, the pose, stage timings and the
+//! masks the evaluation needs. When tracking has no pose the output is the untouched input
+//! (and the log says so).
+//!
+//! Texturing ([`Texturing`]): `Live` is the paper's method (each fragment samples the current
+//! frame at the projection of the same surface point in the key pose; sections 3.2, 4.2),
+//! with or without our visibility test and fallback; `ModelTexture` draws the model's own
+//! scanned texture (no live sampling), for comparison. Diminishing ([`Fill`]): the paper's
+//! rectangle, our ray fill over the dilated key-pose silhouette, or a clean plate.
+
+mod config;
+mod fill;
+mod frame;
+#[cfg(test)]
+mod tests;
+mod texture;
+
+use std::time::Instant;
+
+use glam::Mat4;
+use pa_camera::CameraModel;
+use pa_diminish::{Diminisher, ImageRgba8, Mask, Rect};
+use pa_model::{anim, Model};
+use pa_render::{GpuTexture, GpuVisibility, RenderError, Renderer};
+use pa_track::{GrayImage, TrackState, Tracker};
+
+use crate::composite::composite_twin_over_in;
+use crate::twin::GpuTwin;
+
+pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
+pub use fill::{mask_from_bools, plane_homography};
+pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
+pub use texture::colour_gain;
+use texture::{CpuState, Textured};
+
+/// Errors of the frame pipeline.
+#[derive(Debug, thiserror::Error)]
+pub enum ArError {
+    #[error("frame {index}: {width}x{height} RGBA8 needs {expected} bytes, got {got}")]
+    BadFrame {
+        index: u64,
+        width: u32,
+        height: u32,
+        expected: usize,
+        got: usize,
+    },
+    #[error("rendering: {0}")]
+    Render(#[from] RenderError),
+    #[error("tracking: {0}")]
+    Track(#[from] pa_track::TrackError),
+    #[error("diminishing: {0}")]
+    Diminish(#[from] pa_diminish::DiminishError),
+    #[error("CPU rendering: {0}")]
+    Raster(#[from] pa_raster::RasterError),
+    /// The model has animations but none with this index.
+    #[error("no animation {animation}")]
+    NoAnimation { animation: usize },
+    /// [`ArPipeline::process`] on a pipeline made without a tracker.
+    #[error("no tracker: use process_with_pose")]
+    NoTracker,
+    /// The fill mask was not made before the fill (an internal invariant).
+    #[error("fill mask missing")]
+    FillMaskMissing,
+}
+
+/// Everything the pipeline keeps between frames.
+pub struct ArPipeline {
+    pub camera: CameraModel,
+    pub settings: ArSettings,
+    /// Every prop drawn in every frame, the one given to [`ArPipeline::new`] first (never
+    /// empty).
+    props: Vec<Prop>,
+    tracker: Option<Tracker>,
+    frame_texture: Option<GpuTexture>,
+    visibility: Option<GpuVisibility>,
+    diminisher: Diminisher,
+    /// Clean plate image and its `camera_from_marker`.
+    plate: Option<(ImageRgba8, Mat4)>,
+    frame_index: u64,
+    render_path: RenderPath,
+    /// The CPU path's twin and renderers, made on first use.
+    cpu: Option<Box<CpuState>>,
+    /// The fill mask, and the region of it the last frame set.
+    fill_mask: Option<(Mask, Option<Rect>)>,
+    keep_passes: bool,
+}
+
+/// One prop drawn in every frame: its model, the animation it plays and its placement on the
+/// marker, with the model uploaded for the GPU path.
+pub struct Prop {
+    pub model: Model,
+    pub animation: usize,
+    pub marker_from_prop: Mat4,
+    twin: GpuTwin,
+}
+
+impl Prop {
+    /// Checks the animation and uploads the model.
+    fn new(
+        renderer: &mut Renderer,
+        model: Model,
+        animation: usize,
+        marker_from_prop: Mat4,
+    ) -> Result<Self, ArError> {
+        if animation >= model.animations.len() && !model.animations.is_empty() {
+            return Err(ArError::NoAnimation { animation });
+        }
+        let twin = GpuTwin::upload(renderer, &model)?;
+        Ok(Self {
+            model,
+            animation,
+            marker_from_prop,
+            twin,
+        })
+    }
+
+    /// The prop's poses in a frame: the in-between shown and the key pose (both render
+    /// paths pose from these).
+    fn poses(&self, times: FrameTimes) -> (anim::Pose, anim::Pose) {
+        let anim_pose = anim::sample(&self.model, self.animation, times.animation_s);
+        let key_pose = anim::sample(&self.model, self.animation, times.key_pose_s);
+        (anim_pose, key_pose)
+    }
+}
+
+impl ArPipeline {
+    /// Uploads the model and prepares the stages. `tracker` None means the caller gives the
+    /// pose ([`ArPipeline::process_with_pose`]).
+    pub fn new(
+        renderer: &mut Renderer,
+        model: Model,
+        animation: usize,
+        camera: CameraModel,
+        marker_from_prop: Mat4,
+        tracker: Option<Tracker>,
+        settings: ArSettings,
+    ) -> Result<Self, ArError> {
+        let prop = Prop::new(renderer, model, animation, marker_from_prop)?;
+        let render_path = RenderPath::auto(renderer);
+        Ok(Self {
+            camera,
+            settings,
+            props: vec![prop],
+            tracker,
+            frame_texture: None,
+            visibility: None,
+            diminisher: Diminisher::new(),
+            plate: None,
+            frame_index: 0,
+            render_path,
+            cpu: None,
+            fill_mask: None,
+            keep_passes: false,
+        })
+    }
+
+    /// The renderer of the texture stage ([`RenderPath::auto`] unless set).
+    pub fn render_path(&self) -> RenderPath {
+        self.render_path
+    }
+
+    /// Chooses the renderer of the texture stage.
+    pub fn set_render_path(&mut self, path: RenderPath) {
+        self.render_path = path;
+    }
+
+    /// Adds another prop to every frame (several props at once): its own model, animation
+    /// and placement on the marker, at the same animation and key-pose times as the
+    /// pipeline's own prop. The props are drawn together (each hides the others where it is
+    /// in front, in the key pose as in the in-between), the real props are removed together
+    /// and the light estimate uses all of them.
+    pub fn add_prop(
+        &mut self,
+        renderer: &mut Renderer,
+        model: Model,
+        animation: usize,
+        marker_from_prop: Mat4,
+    ) -> Result<(), ArError> {
+        let prop = Prop::new(renderer, model, animation, marker_from_prop)?;
+        self.props.push(prop);
+        // The CPU twins are rebuilt for the new list on the next frame.
+        self.cpu = None;
+        Ok(())
+    }
+
+    /// Number of props drawn in every frame (1 + those added).
+    pub fn prop_count(&self) -> usize {
+        self.props.len()
+    }
+
+    /// Every prop drawn in every frame, the one given to [`ArPipeline::new`] first.
+    pub fn props(&self) -> &[Prop] {
+        &self.props
+    }
+
+    /// The prop given to [`ArPipeline::new`] (the first of [`ArPipeline::props`]).
+    pub fn first_prop(&self) -> &Prop {
+        &self.props[0]
+    }
+
+    /// Forgets the tracker's history (state, filter, search region) before a frame that
+    /// starts a new sequence; nothing without a tracker.
+    pub fn reset_tracker(&mut self) {
+        if let Some(tracker) = &mut self.tracker {
+            tracker.reset();
+        }
+    }
+
+    /// With `true`, every frame also returns its layers ([`ArFrame::passes`]: the diminished
+    /// plate and the twin alone). Costs two frame copies, and the fill then also covers the
+    /// pixels the twin hides.
+    pub fn set_keep_passes(&mut self, keep: bool) {
+        self.keep_passes = keep;
+    }
+
+    /// Sets the clean plate (the set without the prop) and the camera pose it was taken from.
+    pub fn set_clean_plate(&mut self, plate: ImageRgba8, camera_from_marker: Mat4) {
+        self.plate = Some((plate, camera_from_marker));
+    }
+
+    /// Tracks the marker in `rgba8` (taken at `capture_s`, the tracker's clock) and processes
+    /// the frame.
+    pub fn process(
+        &mut self,
+        renderer: &mut Renderer,
+        rgba8: &[u8],
+        width: u32,
+        height: u32,
+        times: FrameTimes,
+        capture_s: f64,
+    ) -> Result<ArFrame, ArError> {
+        self.check_frame(rgba8, width, height)?;
+        let t0 = Instant::now();
+        let (state, pose, rms) = match &mut self.tracker {
+            Some(tracker) => {
+                let gray = gray_from_rgba(rgba8, width, height)?;
+                let out = tracker.update(&gray, capture_s)?;
+                (
+                    out.state,
+                    out.pose.map(|p| p.to_mat4()),
+                    out.raw.map(|r| r.rms_px),
+                )
+            }
+            None => return Err(ArError::NoTracker),
+        };
+        let track_ms = ms(t0);
+        let mut frame = self.render_frame(renderer, rgba8, width, height, times, pose)?;
+        frame.state = state;
+        frame.reprojection_px = rms;
+        frame.timings.track_ms = track_ms;
+        Ok(frame)
+    }
+
+    /// Processes a frame with a known `camera_from_marker` (no tracking).
+    pub fn process_with_pose(
+        &mut self,
+        renderer: &mut Renderer,
+        rgba8: &[u8],
+        width: u32,
+        height: u32,
+        times: FrameTimes,
+        camera_from_marker: Mat4,
+    ) -> Result<ArFrame, ArError> {
+        self.check_frame(rgba8, width, height)?;
+        let mut f = self.render_frame(
+            renderer,
+            rgba8,
+            width,
+            height,
+            times,
+            Some(camera_from_marker),
+        )?;
+        f.state = TrackState::Tracked;
+        Ok(f)
+    }
+
+    fn check_frame(&mut self, rgba8: &[u8], width: u32, height: u32) -> Result<(), ArError> {
+        self.frame_index += 1;
+        let expected = width as usize * height as usize * 4;
+        if rgba8.len() != expected || width == 0 || height == 0 {
+            return Err(ArError::BadFrame {
+                index: self.frame_index - 1,
+                width,
+                height,
+                expected,
+                got: rgba8.len(),
+            });
+        }
+        Ok(())
+    }
+
+    fn render_frame(
+        &mut self,
+        renderer: &mut Renderer,
+        rgba8: &[u8],
+        width: u32,
+        height: u32,
+        times: FrameTimes,
+        pose: Option<Mat4>,
+    ) -> Result<ArFrame, ArError> {
+        let n = (width * height) as usize;
+        let Some(camera_from_marker) = pose else {
+            return Ok(ArFrame {
+                rgba8: rgba8.to_vec(),
+                state: TrackState::Searching,
+                camera_from_marker: None,
+                reprojection_px: None,
+                timings: StageTimings::default(),
+                twin_mask: vec![false; n],
+                key_mask: vec![false; n],
+                live_counts: (0, 0),
+                live_codes: vec![0; n],
+                passes: None,
+            });
+        };
+        let mut timings = StageTimings::default();
+        // Place + animate (each renderer poses the model its own way: see texture_*).
+        let intrinsics =
+            if (self.camera.intrinsics.width, self.camera.intrinsics.height) == (width, height) {
+                self.camera.intrinsics
+            } else {
+                self.camera.intrinsics.scaled_to(width, height)
+            };
+        let camera_model = CameraModel {
+            intrinsics,
+            distortion: self.camera.distortion,
+        };
+        let view = FrameView {
+            rgba8,
+            width,
+            height,
+            camera_model,
+            camera_from_marker,
+            times,
+        };
+        let textured = match self.render_path {
+            RenderPath::Gpu => self.texture_gpu(renderer, &view, &mut timings)?,
+            RenderPath::Cpu => self.texture_cpu(&view, &mut timings)?,
+        };
+        let n = (width * height) as usize;
+        debug_assert_eq!(textured.twin_mask.len(), n);
+
+        // Diminish: fill the dilated key silhouette in a copy of the frame (fill.rs).
+        let t = Instant::now();
+        let background = self.diminish(&view, &textured)?;
+        timings.diminish_ms = ms(t);
+        let Textured {
+            key_mask,
+            twin_rgba,
+            twin_mask,
+            twin_bbox,
+            live_counts,
+            live_codes,
+            ..
+        } = textured;
+
+        let passes = self.keep_passes.then(|| ArPasses {
+            plate_rgba8: background.as_slice().to_vec(),
+            twin_rgba8: twin_rgba
+                .chunks_exact(4)
+                .zip(&twin_mask)
+                .flat_map(|(p, &m)| if m { [p[0], p[1], p[2], 255] } else { [0; 4] })
+                .collect(),
+        });
+
+        // Composite: twin over the diminished background.
+        let t = Instant::now();
+        let mut out = background.into_vec();
+        composite_twin_over_in(
+            &mut out,
+            &twin_rgba,
+            &twin_mask,
+            width,
+            height,
+            self.settings.anti_alias,
+            twin_bbox,
+        );
+        timings.composite_ms = ms(t);
+        if let Some(cpu) = self
+            .cpu
+            .as_mut()
+            .filter(|_| self.render_path == RenderPath::Cpu)
+        {
+            cpu.renderer.restore_twin_rgba(twin_rgba);
+        }
+        Ok(ArFrame {
+            rgba8: out,
+            state: TrackState::Tracked,
+            camera_from_marker: Some(camera_from_marker),
+            reprojection_px: None,
+            timings,
+            twin_mask,
+            key_mask,
+            live_counts,
+            live_codes,
+            passes,
+        })
+    }
+}
+
+/// One frame and the camera that took it, as the texture stage sees it.
+#[derive(Clone, Copy)]
+struct FrameView<'a> {
+    rgba8: &'a [u8],
+    width: u32,
+    height: u32,
+    /// Intrinsics at the frame's size, with distortion.
+    camera_model: CameraModel,
+    camera_from_marker: Mat4,
+    /// Animation times of the in-between shown and of the key pose present.
+    times: FrameTimes,
+}
+
+/// Milliseconds since `t`.
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Grey (Rec. 601 luma) from RGBA8 (rows in parallel).
+pub fn gray_from_rgba(rgba8: &[u8], width: u32, height: u32) -> Result<GrayImage, ArError> {
+    use rayon::prelude::*;
+    let w = width as usize;
+    let n = w * height as usize;
+    if rgba8.len() != n * 4 || n == 0 {
+        return Err(ArError::BadFrame {
+            index: 0,
+            width,
+            height,
+            expected: n * 4,
+            got: rgba8.len(),
+        });
+    }
+    let mut data = vec![0u8; n];
+    {
+        data.par_chunks_mut(w * 16)
+            .zip(rgba8.par_chunks(w * 16 * 4))
+            .for_each(|(g, c)| {
+                for (o, p) in g.iter_mut().zip(c.chunks_exact(4)) {
+                    *o = ((77 * p[0] as u32 + 150 * p[1] as u32 + 29 * p[2] as u32 + 128) >> 8)
+                        as u8;
+                }
+            });
+    }
+    Ok(GrayImage::new(width, height, data)?)
+}

@@ -1,0 +1,422 @@
+//! The texture stage on either renderer: the key pose as the camera sees it (the diminish
+//! mask, the visibility map, the light on the prop) and the live-textured twin. `texture_gpu`
+//! draws with wgpu, `texture_cpu` with our rasteriser; both give the same [`Textured`].
+
+use std::time::Instant;
+
+use glam::Mat4;
+use pa_model::anim;
+use pa_render::{CpuCamera, CpuTexture, Draw, LiveCamera, LiveDraw, LiveTexturing, Renderer};
+
+use super::{ms, ArError, ArPipeline, FrameView, StageTimings, Texturing};
+use crate::composite::bounding_box;
+use crate::cpu_twin::CpuTwin;
+use crate::shading::{
+    irradiance_samples, irradiance_samples_from, Irradiance, IrradianceSample, KeyDepth, KeyView,
+};
+use crate::twin::TwinFrame;
+
+/// What the CPU path keeps between frames.
+pub(super) struct CpuState {
+    /// One per prop, in [`ArPipeline::props`] order.
+    twins: Vec<CpuTwin>,
+    /// Key-pose depth (visibility map) and the animated twin.
+    pub(super) renderer: pa_raster::CpuRenderer,
+    /// The key pose's unlit colour (the colour gain of the paper's baseline).
+    key_colour: pa_raster::CpuRenderer,
+}
+
+/// The texture stage's results, whichever renderer made them (full-frame buffers).
+pub(super) struct Textured {
+    /// Pixels covered by the key pose as the camera sees it.
+    pub(super) key_mask: Vec<bool>,
+    /// Bounding box of `key_mask` (inclusive), `None` when empty.
+    pub(super) key_bbox: Option<Bbox>,
+    pub(super) twin_rgba: Vec<u8>,
+    pub(super) twin_mask: Vec<bool>,
+    pub(super) twin_bbox: Option<Bbox>,
+    pub(super) live_counts: (usize, usize),
+    pub(super) live_codes: Vec<u8>,
+}
+
+/// An inclusive pixel box `(x0, y0, x1, y1)`.
+pub(super) type Bbox = (usize, usize, usize, usize);
+
+/// The full-frame mask of a CPU visibility buffer's surfaces, and its bounding box; work
+/// proportional to the buffer's dirty rectangle (the rest is a zeroed allocation).
+pub(super) fn mask_of_vis(v: &pa_raster::VisBuffer) -> (Vec<bool>, Option<Bbox>) {
+    let w = v.width as usize;
+    let mut mask = vec![false; w * v.height as usize];
+    let mut b: Option<Bbox> = None;
+    if let Some(r) = v.dirty {
+        for y in r.y0 as usize..=r.y1 as usize {
+            let (a, e) = (y * w + r.x0 as usize, y * w + r.x1 as usize + 1);
+            let (mut first, mut last) = (usize::MAX, 0);
+            for (k, (m, &iz)) in mask[a..e].iter_mut().zip(&v.inv_z[a..e]).enumerate() {
+                if iz > 0.0 {
+                    *m = true;
+                    first = first.min(k);
+                    last = k;
+                }
+            }
+            if first != usize::MAX {
+                let (x0, x1) = (r.x0 as usize + first, r.x0 as usize + last);
+                b = Some(match b {
+                    None => (x0, y, x1, y),
+                    Some((bx0, by0, bx1, _)) => (bx0.min(x0), by0, bx1.max(x1), y),
+                });
+            }
+        }
+    }
+    (mask, b)
+}
+
+/// Key-pose vertices sampled for the fallback's irradiance fit (at most about this many).
+const IRRADIANCE_SAMPLES: usize = 3000;
+
+/// With a visibility map: the smallest facing cosine of a key-pose normal for a live sample
+/// (slightly back-facing interpolated normals at a silhouette are still seen).
+const VISIBLE_MIN_FACING_COS: f32 = -0.3;
+/// With a visibility map: a surface that now faces the camera more than twice as squarely as
+/// in the key pose takes the lit fallback (measured on the generated scene with 2, 2.5, 4 and
+/// off: 2 was best on frames 20-40 degrees from the key, and equal near it).
+const MAX_STRETCH: f32 = 2.0;
+
+/// Clip planes of the AR camera.
+const NEAR_M: f32 = 0.01;
+const FAR_M: f32 = 50.0;
+impl ArPipeline {
+    /// The texture stage on wgpu ([`RenderPath::Gpu`](super::RenderPath::Gpu)).
+    pub(super) fn texture_gpu(
+        &mut self,
+        renderer: &mut Renderer,
+        view: &FrameView<'_>,
+        timings: &mut StageTimings,
+    ) -> Result<Textured, ArError> {
+        let FrameView {
+            rgba8,
+            width,
+            height,
+            camera_model,
+            camera_from_marker,
+            times,
+        } = *view;
+        let n = (width * height) as usize;
+        let t = Instant::now();
+        let camera = CpuCamera {
+            intrinsics: camera_model.intrinsics,
+            camera_from_world: camera_from_marker,
+            near_m: NEAR_M,
+            far_m: FAR_M,
+        };
+        let props = &self.props;
+        // Per prop: (key pose, in-between frame data, key-pose frame data).
+        let frames: Vec<(anim::Pose, TwinFrame, TwinFrame)> = props
+            .iter()
+            .map(|p| {
+                let (anim_pose, key_pose) = p.poses(times);
+                let a = p.twin.frame(&p.model, &anim_pose, p.marker_from_prop);
+                let k = p.twin.frame(&p.model, &key_pose, p.marker_from_prop);
+                (key_pose, a, k)
+            })
+            .collect();
+        timings.animate_ms = ms(t);
+
+        // Texture: the key pose as the camera sees it gives the diminish mask and the light on
+        // the prop (with visibility: the visibility map, read back; without: a plain unlit
+        // render, whose colours also give the baseline's colour gain); then the animated twin.
+        let t = Instant::now();
+        let key_draws: Vec<Draw<'_>> = props
+            .iter()
+            .zip(&frames)
+            .flat_map(|(p, (_, _, k))| p.twin.draws(k))
+            .collect();
+        let (key_depth_m, gain) = match self.settings.texturing {
+            Texturing::Live { visibility: true } => {
+                let map = match self.visibility.as_mut() {
+                    Some(v) if v.size() == (width, height) => {
+                        renderer.update_visibility(v, &camera, &key_draws)?;
+                        v
+                    }
+                    _ => self
+                        .visibility
+                        .insert(renderer.render_visibility(&camera, &key_draws, width, height)?),
+                };
+                (renderer.read_visibility(map)?, None)
+            }
+            _ => {
+                let r = renderer.render(&camera, None, &key_draws, [0.0; 4], width, height)?;
+                let mask: Vec<bool> = r.depth_m.iter().map(|d| d.is_finite()).collect();
+                let gain = colour_gain(rgba8, &r.rgba8, &mask);
+                (r.depth_m, Some(gain))
+            }
+        };
+        let cpu_frame = CpuTexture {
+            width,
+            height,
+            rgba8: rgba8.to_vec(),
+        };
+        let (twin_rgba, twin_depth, live_counts, live_codes) = match self.settings.texturing {
+            Texturing::ModelTexture => {
+                let draws: Vec<Draw<'_>> = props
+                    .iter()
+                    .zip(&frames)
+                    .flat_map(|(p, (_, a, _))| p.twin.draws(a))
+                    .collect();
+                let r = renderer.render(&camera, None, &draws, [0.0; 4], width, height)?;
+                (r.rgba8, r.depth_m, (0, 0), vec![0; n])
+            }
+            Texturing::Live { visibility } => {
+                let frame_tex = match self.frame_texture.take() {
+                    Some(t) if t.size() == (width, height) => {
+                        renderer.update_texture(&t, &cpu_frame)?;
+                        t
+                    }
+                    _ => renderer.upload_frame(&cpu_frame)?,
+                };
+                // The fallback's shading: the set's light measured on the visible key props
+                // (ours), or one colour gain (the baseline without visibility).
+                let irradiance = if visibility {
+                    let view = KeyView {
+                        camera: &camera_model,
+                        camera_from_world: camera_from_marker,
+                        frame_rgba8: rgba8,
+                        key_depth: KeyDepth::Metres(&key_depth_m),
+                        width,
+                        height,
+                    };
+                    key_light(props.iter().zip(&frames), |(p, (key_pose, _, _)), n| {
+                        let posed = pa_model::skin::pose_drawn_meshes(&p.model, key_pose);
+                        irradiance_samples(&p.model, &posed, p.marker_from_prop, &view, n)
+                    })
+                } else {
+                    Irradiance::constant(gain.unwrap_or([1.0; 3]))
+                };
+                let live_camera = LiveCamera::new(camera_model, camera_from_marker);
+                let vis = if visibility {
+                    self.visibility.as_ref()
+                } else {
+                    None
+                };
+                let mut draws: Vec<LiveDraw<'_>> = Vec::new();
+                for (p, (_, anim_frame, key_frame)) in props.iter().zip(&frames) {
+                    draws.extend(
+                        p.twin
+                            .draws(anim_frame)
+                            .into_iter()
+                            .zip(&p.twin.primitives)
+                            .map(|(d, tp)| {
+                                let key_joints: &[Mat4] = if tp.mesh.is_skinned() {
+                                    &key_frame.joint_matrices[tp.node]
+                                } else {
+                                    &[]
+                                };
+                                let mut live = LiveTexturing::new(
+                                    &frame_tex,
+                                    live_camera,
+                                    key_frame.world_from_node[tp.node],
+                                )
+                                .with_key_pose(key_joints, &key_frame.morph_weights[tp.node])
+                                .with_fallback_irradiance(irradiance.rows);
+                                if let Some(v) = vis {
+                                    live = live.with_visibility(v);
+                                    // The depth test decides occlusion, so grazing key-pose
+                                    // normals may sample; surfaces turned to face the camera
+                                    // take the lit fallback instead of a smeared sample.
+                                    live.min_facing_cos = VISIBLE_MIN_FACING_COS;
+                                    live.max_stretch = MAX_STRETCH;
+                                }
+                                d.with_live(live)
+                            }),
+                    );
+                }
+                let r = renderer.render_live(&camera, None, &draws, [0.0; 4], width, height)?;
+                let counts = r.counts();
+                drop(draws);
+                self.frame_texture = Some(frame_tex);
+                (r.frame.rgba8, r.frame.depth_m, counts, r.live_valid)
+            }
+        };
+        timings.texture_ms = ms(t);
+        let twin_mask: Vec<bool> = twin_depth.iter().map(|d| d.is_finite()).collect();
+        let key_mask: Vec<bool> = key_depth_m.iter().map(|d| d.is_finite()).collect();
+        Ok(Textured {
+            key_bbox: bounding_box(&key_mask, width as usize, height as usize),
+            key_mask,
+            twin_bbox: bounding_box(&twin_mask, width as usize, height as usize),
+            twin_rgba,
+            twin_mask,
+            live_counts,
+            live_codes,
+        })
+    }
+
+    /// The texture stage on our own rasteriser
+    /// ([`RenderPath::Cpu`](super::RenderPath::Cpu)): the same passes as
+    /// [`ArPipeline::texture_gpu`], with the models posed on the CPU.
+    pub(super) fn texture_cpu(
+        &mut self,
+        view: &FrameView<'_>,
+        timings: &mut StageTimings,
+    ) -> Result<Textured, ArError> {
+        use rayon::prelude::*;
+        let FrameView {
+            rgba8,
+            width,
+            height,
+            camera_model,
+            camera_from_marker,
+            times,
+        } = *view;
+        let n = (width * height) as usize;
+        let t = Instant::now();
+        let props = &self.props;
+        let cpu = match &mut self.cpu {
+            Some(c) => c,
+            None => self.cpu.insert(Box::new(CpuState {
+                twins: props
+                    .iter()
+                    .map(|p| CpuTwin::new(&p.model))
+                    .collect::<Result<_, _>>()?,
+                renderer: pa_raster::CpuRenderer::new(),
+                key_colour: pa_raster::CpuRenderer::new(),
+            })),
+        };
+        // Every prop posed at both times (props in parallel; each poses its two in parallel).
+        cpu.twins
+            .par_iter_mut()
+            .zip(props.par_iter())
+            .for_each(|(twin, p)| {
+                let (anim_pose, key_pose) = p.poses(times);
+                twin.pose(&p.model, &anim_pose, &key_pose, p.marker_from_prop);
+            });
+        timings.animate_ms = ms(t);
+
+        let t = Instant::now();
+        let camera = pa_raster::RasterCamera::new(&camera_model.intrinsics, NEAR_M, FAR_M);
+        let frame = pa_raster::FrameSampler::new(width, height, rgba8)?;
+        let mut params = pa_raster::LiveParams::new(pa_raster::FrameCamera::new(&camera_model));
+        let twins = &cpu.twins;
+        let key_vis = match self.settings.texturing {
+            Texturing::Live { visibility: false } => {
+                // The paper's baseline: the key poses' unlit colours give one colour gain.
+                let key_meshes: Vec<_> = twins
+                    .iter()
+                    .zip(props)
+                    .flat_map(|(tw, p)| tw.key_meshes(&p.model))
+                    .collect();
+                cpu.key_colour.render_twin(
+                    &camera,
+                    camera_from_marker,
+                    &key_meshes,
+                    &pa_raster::Shading::Albedo,
+                );
+                let (mask, bbox) = mask_of_vis(cpu.key_colour.twin_depth());
+                let gain = colour_gain(rgba8, &cpu.key_colour.twin_image().rgba8, &mask);
+                params.fallback_irradiance = Irradiance::constant(gain).rows;
+                (mask, bbox)
+            }
+            _ => {
+                let key_meshes: Vec<_> = twins
+                    .iter()
+                    .zip(props)
+                    .flat_map(|(tw, p)| tw.key_depth_meshes(&p.model))
+                    .collect();
+                cpu.renderer
+                    .render_key_depth(&camera, camera_from_marker, &key_meshes);
+                mask_of_vis(cpu.renderer.key_depth())
+            }
+        };
+        let (key_mask, key_bbox) = key_vis;
+        let shading = match self.settings.texturing {
+            Texturing::ModelTexture => pa_raster::Shading::Albedo,
+            Texturing::Live { visibility } => {
+                if visibility {
+                    let key_view = KeyView {
+                        camera: &camera_model,
+                        camera_from_world: camera_from_marker,
+                        frame_rgba8: rgba8,
+                        key_depth: KeyDepth::InverseMetres(&cpu.renderer.key_depth().inv_z),
+                        width,
+                        height,
+                    };
+                    let light = key_light(twins.iter().zip(props), |(tw, p), n| {
+                        // Posed in the marker frame already: the world is the model's.
+                        let posed = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
+                            (
+                                tp.mesh,
+                                tp.primitive,
+                                k.positions_world.as_slice(),
+                                k.normals_world.as_slice(),
+                            )
+                        });
+                        irradiance_samples_from(&p.model, posed, Mat4::IDENTITY, &key_view, n)
+                    });
+                    params.fallback_irradiance = light.rows;
+                    params.visibility = true;
+                    params.min_facing_cos = VISIBLE_MIN_FACING_COS;
+                    params.max_stretch = MAX_STRETCH;
+                }
+                pa_raster::Shading::Live { frame, params }
+            }
+        };
+        let meshes: Vec<_> = twins
+            .iter()
+            .zip(props)
+            .flat_map(|(tw, p)| tw.live_meshes(&p.model))
+            .collect();
+        let image = cpu
+            .renderer
+            .render_twin(&camera, camera_from_marker, &meshes, &shading);
+        let live_counts = image.counts();
+        let live_codes = image.codes.clone();
+        // Lent to the composite, given back after it (see render_frame).
+        let twin_rgba = cpu.renderer.take_twin_rgba();
+        let (twin_mask, twin_bbox) = mask_of_vis(cpu.renderer.twin_depth());
+        debug_assert_eq!(twin_rgba.len(), n * 4);
+        timings.texture_ms = ms(t);
+        Ok(Textured {
+            key_mask,
+            key_bbox,
+            twin_rgba,
+            twin_mask,
+            twin_bbox,
+            live_counts,
+            live_codes,
+        })
+    }
+}
+
+/// The set's light on the visible key props, fitted over all of them: `samples_of(prop, n)`
+/// gives at most about `n` irradiance samples of one prop, [`IRRADIANCE_SAMPLES`] shared
+/// evenly between the props (both render paths).
+fn key_light<P>(
+    props: impl ExactSizeIterator<Item = P>,
+    mut samples_of: impl FnMut(P, usize) -> Vec<IrradianceSample>,
+) -> Irradiance {
+    let per_prop = IRRADIANCE_SAMPLES / props.len();
+    let samples: Vec<_> = props.flat_map(|p| samples_of(p, per_prop)).collect();
+    Irradiance::fit_or_mean(&samples)
+}
+
+/// Per-channel gain that maps the model's texture (as rendered, unlit) to the live frame over
+/// the key-pose silhouette: the colour match of the fallback. Clamped to [0.25, 4].
+pub fn colour_gain(frame: &[u8], model_render: &[u8], mask: &[bool]) -> [f32; 3] {
+    let mut sf = [0f64; 3];
+    let mut sm = [0f64; 3];
+    for (i, &m) in mask.iter().enumerate() {
+        if m {
+            for c in 0..3 {
+                sf[c] += pa_raster::srgb::srgb_to_linear(frame[i * 4 + c]) as f64;
+                sm[c] += pa_raster::srgb::srgb_to_linear(model_render[i * 4 + c]) as f64;
+            }
+        }
+    }
+    let mut g = [1f32; 3];
+    for c in 0..3 {
+        if sm[c] > 1e-6 {
+            g[c] = ((sf[c] / sm[c]) as f32).clamp(0.25, 4.0);
+        }
+    }
+    g
+}
