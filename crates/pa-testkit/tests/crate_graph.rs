@@ -84,6 +84,11 @@ const ALLOWED: &[(&str, &[&str], &str)] = &[
         ],
         "the scene generator drives the pipeline on the built-in set",
     ),
+    (
+        "pa-take",
+        &["pa-io", "pa-camera", "pa-video", "pa-track"],
+        "a take on disk (log, resume, passes, camera export, MP4) needs no pipeline or GPU",
+    ),
     ("pa-testkit", &[], "test helpers stand alone"),
     ("pa-fuzz", ANY_LIBRARY, "fuzz targets may call any library"),
     (BINARY, ANY_LIBRARY, "the binary wires everything"),
@@ -120,6 +125,7 @@ const GPU_FREE: &[&str] = &[
     "pa-diminish",
     "pa-video",
     "pa-calib",
+    "pa-take",
     "pa-testkit",
 ];
 
