@@ -181,10 +181,10 @@ fn exercise_model(model: &pa_model::Model) {
 // --- shot file -------------------------------------------------------------------------------
 
 /// A shot TOML through `Shot::load`, then what `propsalive run` derives from a loaded shot
-/// (its `board_from_shot` and the fov branch of `camera_for_shot` are replicated here: they
-/// live in the binary).
+/// (`pa_pipeline::shot_config`: the board, and the camera of the fov branch).
 pub fn shot(data: &[u8]) {
     use pa_pipeline::shot::Shot;
+    use pa_pipeline::shot_config;
     let path = scratch_file("shot.toml", data);
     let Ok(shot) = Shot::load(&path) else {
         return;
@@ -200,31 +200,14 @@ pub fn shot(data: &[u8]) {
         let _ = fps.mp4_timebase();
         let _ = fps.as_f64();
     }
-    // `board_from_shot`.
-    if let Ok(family) = shot.marker.family.parse::<pa_track::TagFamily>() {
-        if let Ok(layout) = pa_track::family_layout(family) {
-            let tags: Vec<_> = shot
-                .marker
-                .tags
-                .iter()
-                .take_while(|t| t.id < layout.id_count)
-                .map(|t| pa_track::board::BoardTag {
-                    id: t.id,
-                    center_m: glam::DVec2::new(t.center_m[0], t.center_m[1]),
-                    size_m: t.size_m,
-                    rotation_rad: 0.0,
-                })
-                .collect();
-            let board = pa_track::Board { family, tags };
-            let _ = board.all_object_points();
-        }
+    // What `propsalive run` and `preview` derive from it (`pa_pipeline::shot_config`): the
+    // board, and the camera without a calibration file (a calibration is its own target).
+    if let Ok(board) = shot_config::board_from_shot(&shot, &path) {
+        let _ = board.all_object_points();
     }
-    // `camera_for_shot` without a calibration file.
-    if let (None, Some(fov)) = (&shot.camera.calibration, shot.camera.fov_y_deg) {
-        if fov.is_finite() && fov > 1.0 && fov < 179.0 {
-            if let Ok(k) = pa_camera::Intrinsics::from_fov_y(fov.to_radians(), 640, 480) {
-                exercise_camera(&pa_camera::CameraModel::pinhole(k));
-            }
+    if shot.camera.calibration.is_none() {
+        if let Ok(camera) = shot_config::camera_for_shot(&shot, &path, 640, 480, "fuzz") {
+            exercise_camera(&camera.value);
         }
     }
     let _ = shot.to_toml();

@@ -11,6 +11,7 @@ pub mod framing;
 pub mod metrics;
 pub mod shading;
 pub mod shot;
+pub mod shot_config;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};

@@ -68,7 +68,8 @@ const FIELDS: &[&str] = &[
     "yaw_deg",
 ];
 
-/// Errors reading, checking or writing a shot; each but [`ShotError::Serialize`] names the file.
+/// Errors reading, checking or writing a shot, or turning it into a board or a camera
+/// ([`crate::shot_config`]); each but [`ShotError::Serialize`] names the file (or the frames).
 #[derive(Debug, thiserror::Error)]
 pub enum ShotError {
     /// Not a regular file, over [`MAX_SHOT_BYTES`], not UTF-8, or an operating-system error.
@@ -89,6 +90,55 @@ pub enum ShotError {
     /// [`Shot::to_toml`] failed (no file involved).
     #[error("{0}")]
     Serialize(toml::ser::Error),
+    // Turning a shot into a board or a camera (`shot_config`).
+    /// `[marker] family` is not a tag family.
+    #[error("{}: [marker] family", shot.display())]
+    Family {
+        shot: PathBuf,
+        #[source]
+        source: pa_track::TrackError,
+    },
+    /// The tracker's own error (a family without a layout).
+    #[error(transparent)]
+    Track(#[from] pa_track::TrackError),
+    /// A tag id beyond the family's.
+    #[error("{}: tag id {id} does not exist in {family} (ids 0..{id_count})", shot.display())]
+    TagId {
+        shot: PathBuf,
+        id: u32,
+        family: pa_track::TagFamily,
+        id_count: u32,
+    },
+    /// The shot's calibration file cannot be loaded.
+    #[error("loading the calibration {}", path.display())]
+    Calibration {
+        path: PathBuf,
+        #[source]
+        source: pa_camera::calib::CalibError,
+    },
+    /// The frames' aspect ratio is not the calibration's.
+    #[error(
+        "{frame_name} is {width}x{height} but the calibration {calib_name} is for {calib_width}x{calib_height} (aspect {frame_aspect:.4} vs {calib_aspect:.4}): a different aspect ratio means a crop or another camera mode; calibrate at this resolution"
+    )]
+    AspectRatio {
+        frame_name: String,
+        width: u32,
+        height: u32,
+        calib_name: String,
+        calib_width: u32,
+        calib_height: u32,
+        frame_aspect: f64,
+        calib_aspect: f64,
+    },
+    /// `[camera] fov_y_deg` out of range.
+    #[error("{}: [camera] fov_y_deg must be in (1, 179), got {fov}", shot.display())]
+    FieldOfView { shot: PathBuf, fov: f64 },
+    /// Neither a calibration nor a field of view.
+    #[error("{}: [camera] needs calibration or fov_y_deg", shot.display())]
+    NoCamera { shot: PathBuf },
+    /// The pinhole camera cannot be made (a frame size out of range).
+    #[error(transparent)]
+    Camera(#[from] pa_camera::CameraError),
 }
 
 /// Exactly `N` numbers (serde's arrays would silently drop extra ones from TOML).

@@ -94,6 +94,11 @@ const ALLOWED: &[(&str, &[&str], &str)] = &[
         &["pa-camera", "pa-track"],
         "CPU drawing for people (preview overlays, marker sheets) needs only the camera and the tag families",
     ),
+    (
+        "pa-take",
+        &["pa-io", "pa-camera", "pa-video", "pa-track"],
+        "a take on disk (log, resume, passes, camera export, MP4) needs no pipeline or GPU",
+    ),
     ("pa-testkit", &[], "test helpers stand alone"),
     ("pa-fuzz", ANY_LIBRARY, "fuzz targets may call any library"),
     (BINARY, ANY_LIBRARY, "the binary wires everything"),
@@ -132,6 +137,7 @@ const GPU_FREE: &[&str] = &[
     "pa-calib",
     "pa-report",
     "pa-overlay",
+    "pa-take",
     "pa-testkit",
 ];
 

@@ -2,7 +2,6 @@
 
 pub mod bench;
 pub mod calibrate;
-pub mod camera_export;
 pub mod demo;
 pub mod eval;
 pub mod export;

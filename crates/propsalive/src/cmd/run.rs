@@ -18,7 +18,7 @@
 //!   and the take's settings (`exposure`, `bit_depth`, `shot_hash`). Each line is appended and
 //!   fsynced before its frame is written.
 //! - `camera.gltf`: the tracked camera of every still of the take with a pose in the log, as
-//!   an animated glTF 2.0 camera (see `camera_export`), rewritten atomically at the end of
+//!   an animated glTF 2.0 camera (see `pa_take::camera_export`), rewritten atomically at the end of
 //!   each run; not written (a note says so) when no still was tracked.
 //! - With `--passes plate,twin,masks`: `plate/NNNNNN.png` (the diminished plate: the frame
 //!   with the real prop removed, before the twin is drawn; at the take's bit depth),
@@ -81,22 +81,27 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pa_camera::{CameraModel, Intrinsics};
 use pa_pipeline::ar::{ArPipeline, ArSettings, StageTimings};
 use pa_pipeline::shot::Shot;
+use pa_pipeline::shot_config;
 use pa_render::Renderer;
-use pa_track::board::BoardTag;
-use pa_track::{Board, DetectorConfig, TagFamily, TrackTarget, Tracker, TrackerConfig};
+use pa_take::mp4::{check_mp4_target, mp4_is_current, take_hash};
+use pa_take::{
+    camera_start_index, check_no_overlap, check_take_folders, encode, encode_masks, file_stamp,
+    foreign_files, frame_name, hash_hex, lock_take, remove_stale_temps, write_durable, write_log,
+    Entry, InputKind, PassSet, Plan, Take, Timings, Written, TAKE_DIRS,
+};
+use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 use pa_video::source::{
     CameraSource, Next as SourceNext, Pixels, Source, SourceFrame, StillsSource, VideoSource,
 };
 use pa_video::still::StillBudget;
-use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, VideoReader};
-use serde::{Deserialize, Serialize};
+use pa_video::{Fps, Mp4Writer, VideoReader};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -141,220 +146,13 @@ pub struct Args {
     pub camera_size: Option<String>,
 }
 
-/// One line of `log.jsonl`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct Entry {
-    pub index: usize,
-    pub input: String,
-    pub input_bytes: u64,
-    pub input_mtime_ns: u64,
-    pub anim_frame: u32,
-    pub key_pose: String,
-    #[serde(default)]
-    pub state: Option<String>,
-    #[serde(default)]
-    pub camera_from_marker: Option<Vec<f32>>,
-    #[serde(default)]
-    pub reprojection_px: Option<f64>,
-    #[serde(default)]
-    pub timings_ms: Option<Timings>,
-    #[serde(default)]
-    pub output: Option<String>,
-    #[serde(default)]
-    pub skipped: Option<String>,
-    /// The pass files written with this frame (`plate/NNNNNN.png`, ...), with `--passes`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub passes: Option<Vec<String>>,
-    /// What was written for this still (the frame and its passes): each file's size and
-    /// XXH3-64 hash. Resume keeps a frame only when its files still match.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub written: Option<Vec<Written>>,
-    pub exposure: u32,
-    pub bit_depth: u8,
-    pub shot_hash: String,
-}
-
-/// One file a still wrote, as the log records it.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct Written {
-    /// Relative to the take folder (`frames/000003.png`).
-    pub path: String,
-    pub bytes: u64,
-    /// XXH3-64 of the bytes, 16 hex digits.
-    pub xxh3: String,
-}
-
-impl Written {
-    fn of(path: String, bytes: &[u8]) -> Self {
-        Self {
-            path,
-            bytes: bytes.len() as u64,
-            xxh3: format!("{:016x}", xxhash_rust::xxh3::xxh3_64(bytes)),
-        }
-    }
-
-    /// Why the file in `take` does not match the record (None when it does). A symbolic link
-    /// is never followed: it does not match.
-    fn mismatch(&self, take: &Path) -> Option<String> {
-        let p = take.join(&self.path);
-        let meta = match std::fs::symlink_metadata(&p) {
-            Ok(m) => m,
-            Err(_) => return Some(format!("{} is missing", self.path)),
-        };
-        if !meta.is_file() {
-            return Some(format!("{} is {}", self.path, pa_io::kind_of(&meta)));
-        }
-        if meta.len() != self.bytes {
-            return Some(format!(
-                "{} has {} bytes, {} were written",
-                self.path,
-                meta.len(),
-                self.bytes
-            ));
-        }
-        let bytes = match pa_io::read_regular(&p, self.bytes, "a frame of the take") {
-            Ok(b) => b,
-            Err(e) => return Some(e.to_string()),
-        };
-        let h = format!("{:016x}", xxhash_rust::xxh3::xxh3_64(&bytes));
-        (h != self.xxh3).then(|| format!("{} was changed after it was written", self.path))
-    }
-}
-
-/// Stage timings of one still, milliseconds.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq)]
-pub struct Timings {
-    pub track: f64,
-    pub animate: f64,
-    pub texture: f64,
-    pub diminish: f64,
-    pub composite: f64,
-    pub encode: f64,
-}
-
-fn frame_name(index: usize) -> String {
-    format!("{index:06}.png")
-}
-
-/// FNV-1a of the bytes, hex.
-fn hash_hex(bytes: &[u8]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in bytes {
-        h ^= *b as u64;
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    format!("{h:016x}")
-}
-
-/// (size in bytes, modification time in ns since the epoch) of a file.
-fn file_stamp(p: &Path) -> Result<(u64, u64)> {
-    let m = std::fs::metadata(p).with_context(|| format!("reading {}", p.display()))?;
-    let mtime = m
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(UNIX_EPOCH).ok())
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(0);
-    Ok((m.len(), mtime))
-}
-
-/// Reads a take's log: the last line for each index wins; an unparsable last line (a write
-/// cut short) is ignored, an unparsable line elsewhere is reported and ignored.
+/// The take's log ([`pa_take::read_log`]); the lines it ignored are said on stderr.
 pub fn read_log(path: &Path) -> Result<BTreeMap<usize, Entry>> {
-    let mut map = BTreeMap::new();
-    if std::fs::symlink_metadata(path).is_err() {
-        return Ok(map);
+    let log = pa_take::read_log(path)?;
+    for note in &log.notes {
+        errln!("{note}");
     }
-    let text = pa_io::read_regular(path, MAX_LOG_BYTES, "a take's log")?;
-    let text = String::from_utf8_lossy(&text);
-    let lines: Vec<&str> = text.split('\n').collect();
-    for (n, line) in lines.iter().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        match serde_json::from_str::<Entry>(line) {
-            Ok(e) => {
-                map.insert(e.index, e);
-            }
-            Err(e) if n + 1 == lines.len() => {
-                errln!(
-                    "note: {}: ignoring a truncated last line ({e})",
-                    path.display()
-                );
-            }
-            Err(e) => errln!(
-                "warning: {}: ignoring unreadable line {} ({e})",
-                path.display(),
-                n + 1
-            ),
-        }
-    }
-    Ok(map)
-}
-
-/// The budget for a take's log: about two million stills.
-const MAX_LOG_BYTES: u64 = 1 << 30;
-
-/// The log's text: one line per index, in index order.
-fn log_text(entries: &BTreeMap<usize, Entry>) -> Result<String> {
-    let mut text = String::new();
-    for e in entries.values() {
-        text.push_str(&serde_json::to_string(e)?);
-        text.push('\n');
-    }
-    Ok(text)
-}
-
-/// Rewrites the log (atomically) unless it already holds exactly this text: a run with
-/// nothing to do writes nothing (a finished take on a read-only disk can be checked).
-fn write_log(path: &Path, entries: &BTreeMap<usize, Entry>) -> Result<()> {
-    let text = log_text(entries)?;
-    write_durable_if_changed(path, text.as_bytes())
-}
-
-/// [`write_durable`] unless `path` is a regular file holding exactly `bytes` already.
-fn write_durable_if_changed(path: &Path, bytes: &[u8]) -> Result<()> {
-    let same = std::fs::symlink_metadata(path)
-        .is_ok_and(|m| m.is_file() && m.len() == bytes.len() as u64)
-        && pa_io::read_regular(path, bytes.len() as u64, "a file of the take")
-            .is_ok_and(|old| old == bytes);
-    if same {
-        return Ok(());
-    }
-    write_durable(path, bytes)
-}
-
-/// Writes `bytes` to `path` atomically; `pa_io::write_atomic` also syncs the folder, so the
-/// rename is durable.
-fn write_durable(path: &Path, bytes: &[u8]) -> Result<()> {
-    pa_io::write_atomic(path, bytes).with_context(|| format!("writing {}", path.display()))
-}
-
-pub(crate) fn board_from_shot(shot: &Shot, shot_path: &Path) -> Result<Board> {
-    let family: TagFamily = shot
-        .marker
-        .family
-        .parse()
-        .with_context(|| format!("{}: [marker] family", shot_path.display()))?;
-    let layout = pa_track::family_layout(family)?;
-    let mut tags = Vec::new();
-    for t in &shot.marker.tags {
-        if t.id >= layout.id_count {
-            bail!(
-                "{}: tag id {} does not exist in {family} (ids 0..{})",
-                shot_path.display(),
-                t.id,
-                layout.id_count
-            );
-        }
-        tags.push(BoardTag {
-            id: t.id,
-            center_m: glam::DVec2::new(t.center_m[0], t.center_m[1]),
-            size_m: t.size_m,
-            rotation_rad: 0.0,
-        });
-    }
-    Ok(Board { family, tags })
+    Ok(log.entries)
 }
 
 // --- input ---------------------------------------------------------------------------------
@@ -368,54 +166,8 @@ pub(crate) fn parse_input(input: &Path) -> Result<InputSpec> {
     pa_video::source::parse_input(input).map_err(|e| anyhow::anyhow!("--input {e}"))
 }
 
-/// The shot's camera at a frame size: its calibration (scaled to the size when the aspect
-/// ratio agrees), or an ideal pinhole with its vertical field of view.
-pub(crate) fn camera_for_shot(
-    shot: &Shot,
-    shot_path: &Path,
-    width: u32,
-    height: u32,
-    frame_desc: &str,
-) -> Result<CameraModel> {
-    match (&shot.camera.calibration, shot.camera.fov_y_deg) {
-        (Some(c), _) => {
-            let path = Shot::resolve(shot_path, c);
-            let model = pa_camera::calib::load_calibration(&path)
-                .with_context(|| format!("loading the calibration {}", path.display()))?;
-            let k = super::track::fit_intrinsics(
-                &model.intrinsics,
-                width,
-                height,
-                &path.display().to_string(),
-                frame_desc,
-            )?;
-            Ok(CameraModel {
-                intrinsics: k,
-                distortion: model.distortion,
-            })
-        }
-        (None, Some(fov)) => {
-            if !(fov.is_finite() && fov > 1.0 && fov < 179.0) {
-                bail!(
-                    "{}: [camera] fov_y_deg must be in (1, 179), got {fov}",
-                    shot_path.display()
-                );
-            }
-            Ok(CameraModel::pinhole(Intrinsics::from_fov_y(
-                fov.to_radians(),
-                width,
-                height,
-            )?))
-        }
-        (None, None) => bail!(
-            "{}: [camera] needs calibration or fov_y_deg",
-            shot_path.display()
-        ),
-    }
-}
-
 /// The size to ask a camera for: `--camera-size`, else the shot's calibration size, else
-/// 1280x720.
+/// 1280x720 ([`shot_config::camera_request`]).
 pub(crate) fn camera_request(
     camera_size: Option<&str>,
     shot: &Shot,
@@ -424,68 +176,13 @@ pub(crate) fn camera_request(
     if let Some(s) = camera_size {
         return super::parse_size(s).with_context(|| format!("--camera-size {s}"));
     }
-    if let Some(c) = &shot.camera.calibration {
-        let path = Shot::resolve(shot_path, c);
-        let model = pa_camera::calib::load_calibration(&path)
-            .with_context(|| format!("loading the calibration {}", path.display()))?;
-        return Ok((model.intrinsics.width, model.intrinsics.height));
-    }
-    Ok((1280, 720))
+    Ok(shot_config::camera_request(shot, shot_path)?)
 }
 
 /// Opens a camera at the shot's rate (the `v4l` feature; without it, `pa-video`'s error
 /// naming the feature).
 pub(crate) fn open_camera(device: &Path, size: (u32, u32), fps: f32) -> Result<pa_video::Camera> {
     Ok(pa_video::source::open_camera(device, size, fps)?)
-}
-
-/// The passes asked for with `--passes`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-struct PassSet {
-    pub plate: bool,
-    pub twin: bool,
-    pub masks: bool,
-}
-
-impl PassSet {
-    fn parse(list: &[String]) -> Result<PassSet> {
-        let mut p = PassSet::default();
-        for item in list {
-            match item.trim().to_ascii_lowercase().as_str() {
-                "plate" => p.plate = true,
-                "twin" => p.twin = true,
-                "masks" | "mask" => p.masks = true,
-                "all" => {
-                    p = PassSet {
-                        plate: true,
-                        twin: true,
-                        masks: true,
-                    }
-                }
-                "" => {}
-                other => bail!(
-                    "--passes: unknown pass {other:?} (use plate, twin, masks or all, comma-separated)"
-                ),
-            }
-        }
-        Ok(p)
-    }
-
-    fn any(self) -> bool {
-        self.plate || self.twin || self.masks
-    }
-
-    /// The folders of the passes asked for.
-    fn dirs(self) -> Vec<&'static str> {
-        [
-            (self.plate, "plate"),
-            (self.twin, "twin"),
-            (self.masks, "masks"),
-        ]
-        .into_iter()
-        .filter_map(|(on, d)| on.then_some(d))
-        .collect()
-    }
 }
 
 /// Where the stills come from, resolved.
@@ -535,7 +232,15 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
     let shot = Shot::load(&args.shot)?;
     let shot_text = pa_io::read_regular(&args.shot, MAX_SHOT_BYTES, "a shot file")?;
     let input = parse_input(&args.input)?;
-    check_no_overlap(&input, &args.out, args.mp4.as_deref())?;
+    match &input {
+        InputSpec::Folder(p) => {
+            check_no_overlap(p, InputKind::Folder, &args.out, args.mp4.as_deref())?
+        }
+        InputSpec::Video(p) => {
+            check_no_overlap(p, InputKind::Video, &args.out, args.mp4.as_deref())?
+        }
+        InputSpec::Camera(_) => {}
+    }
     if let Some(mp4) = &args.mp4 {
         Fps::from_f64(shot.fps as f64)
             .with_context(|| format!("{}: fps {} for the MP4", args.shot.display(), shot.fps))?;
@@ -626,8 +331,12 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
         Mp4Writer::check_frame_size(width, height)
             .with_context(|| format!("--mp4 for {first_desc} ({width}x{height})"))?;
     }
-    let camera = camera_for_shot(&shot, &args.shot, width, height, &first_desc)?;
-    let board = board_from_shot(&shot, &args.shot)?;
+    let camera = shot_config::camera_for_shot(&shot, &args.shot, width, height, &first_desc)?;
+    if let Some(note) = &camera.scaled {
+        errln!("{note}");
+    }
+    let camera = camera.value;
+    let board = shot_config::board_from_shot(&shot, &args.shot)?;
     let model_path = Shot::resolve(&args.shot, &shot.model);
     let model = pa_model::Model::load(&model_path)
         .with_context(|| format!("loading the model {}", model_path.display()))?;
@@ -654,66 +363,6 @@ fn resolve(args: &Args) -> Result<(Config, SourceSpec)> {
 
 /// The budget for a shot file (read again here for its hash).
 const MAX_SHOT_BYTES: u64 = 4 << 20;
-
-/// `p` made absolute with every symbolic link resolved as far as the path exists (the rest,
-/// not yet created, appended as written).
-fn resolved(p: &Path) -> PathBuf {
-    let abs = absolute(p);
-    let mut existing = abs.as_path();
-    let mut rest = Vec::new();
-    loop {
-        if let Ok(c) = existing.canonicalize() {
-            let mut out = c;
-            for r in rest.iter().rev() {
-                out.push(r);
-            }
-            return out;
-        }
-        match (existing.parent(), existing.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_os_string());
-                existing = parent;
-            }
-            _ => return abs,
-        }
-    }
-}
-
-/// Refuses a take whose outputs could overwrite its inputs: the input (a folder of stills or
-/// a video file) inside the take folder or the take folder inside the input folder, after
-/// resolving links, and an `--mp4` that is the input or lies in the input folder. Checked
-/// with or without `--force`.
-fn check_no_overlap(input: &InputSpec, out: &Path, mp4: Option<&Path>) -> Result<()> {
-    let input_path = match input {
-        InputSpec::Folder(p) | InputSpec::Video(p) => resolved(p),
-        InputSpec::Camera(_) => return Ok(()),
-    };
-    let out_path = resolved(out);
-    if input_path.starts_with(&out_path) || out_path.starts_with(&input_path) {
-        bail!(
-            "--input {} and --out {} overlap ({} and {}): the take would write over its own input; write the take to a folder outside the input (with or without --force)",
-            match input {
-                InputSpec::Folder(p) | InputSpec::Video(p) => p.display().to_string(),
-                InputSpec::Camera(p) => p.display().to_string(),
-            },
-            out.display(),
-            input_path.display(),
-            out_path.display()
-        );
-    }
-    if let Some(mp4) = mp4 {
-        let mp4_path = resolved(mp4);
-        if mp4_path == input_path
-            || (matches!(input, InputSpec::Folder(_)) && mp4_path.starts_with(&input_path))
-        {
-            bail!(
-                "--mp4 {} is the input or inside the input folder; name a file elsewhere",
-                mp4.display()
-            );
-        }
-    }
-    Ok(())
-}
 
 // --- frame sources -------------------------------------------------------------------------
 
@@ -774,7 +423,7 @@ impl TakeStills {
         let stamps = stills
             .iter()
             .map(|p| file_stamp(p))
-            .collect::<Result<_>>()?;
+            .collect::<std::result::Result<_, _>>()?;
         Ok(Self {
             source: StillsSource::new(stills),
             stamps,
@@ -1050,300 +699,7 @@ fn state_of(observed: bool) -> pa_track::TrackState {
     }
 }
 
-/// PNG bytes of an RGBA8 image at `bit_depth`: 16-bit keeps `input`'s own 16-bit values
-/// where the 8-bit result equals the input's 8-bit pixel, and widens (`v * 257`) elsewhere.
-fn encode(
-    out8: &[u8],
-    input: Option<&image::DynamicImage>,
-    bit_depth: u8,
-    w: u32,
-    h: u32,
-) -> Result<Vec<u8>> {
-    let mut png = Vec::new();
-    let mut cur = std::io::Cursor::new(&mut png);
-    if bit_depth == 16 {
-        let data: Vec<u16> = match input {
-            Some(input) => {
-                let in16 = input.to_rgba16();
-                let in8 = input.to_rgba8();
-                let mut data = Vec::with_capacity(out8.len());
-                for ((o, i8), i16) in out8
-                    .chunks_exact(4)
-                    .zip(in8.as_raw().chunks_exact(4))
-                    .zip(in16.as_raw().chunks_exact(4))
-                {
-                    if o == i8 {
-                        data.extend_from_slice(i16);
-                    } else {
-                        data.extend(o.iter().map(|&v| v as u16 * 257));
-                    }
-                }
-                data
-            }
-            None => out8.iter().map(|&v| v as u16 * 257).collect(),
-        };
-        let img = image::ImageBuffer::<image::Rgba<u16>, _>::from_raw(w, h, data)
-            .context("frame buffer has the wrong size")?;
-        img.write_to(&mut cur, image::ImageFormat::Png)?;
-    } else {
-        let img = image::RgbaImage::from_raw(w, h, out8.to_vec())
-            .context("frame buffer has the wrong size")?;
-        img.write_to(&mut cur, image::ImageFormat::Png)?;
-    }
-    Ok(png)
-}
-
-/// The masks pass: 8-bit RGB, R = key pose, G = twin.
-fn encode_masks(key: &[bool], twin: &[bool], w: u32, h: u32) -> Result<Vec<u8>> {
-    let data: Vec<u8> = key
-        .iter()
-        .zip(twin)
-        .flat_map(|(&k, &t)| [if k { 255 } else { 0 }, if t { 255 } else { 0 }, 0])
-        .collect();
-    let img = image::RgbImage::from_raw(w, h, data).context("mask buffer has the wrong size")?;
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-    Ok(png)
-}
-
 // --- the take ------------------------------------------------------------------------------
-
-/// What to do with one still.
-enum Plan {
-    /// Logged and present (or logged as skipped): nothing to do.
-    Done,
-    /// Process; the message (if any) is said on stderr first.
-    Process(Option<String>),
-}
-
-/// A take being written: its folder, its log and its settings.
-struct Take {
-    out: PathBuf,
-    log_path: PathBuf,
-    entries: BTreeMap<usize, Entry>,
-    /// Indices logged with other settings (re-rendered with --force).
-    stale: HashSet<usize>,
-    exposure: u32,
-    bit_depth: u8,
-    shot_hash: String,
-    key_name: String,
-    passes: PassSet,
-    width: u32,
-    height: u32,
-    /// "still" or "frame".
-    unit: &'static str,
-}
-
-/// The folders of a take that hold numbered files.
-const TAKE_DIRS: [&str; 5] = ["frames", "inputs", "plate", "twin", "masks"];
-/// Those a run writes over: a file there the log does not know is refused without --force.
-/// (`inputs/` is written only by a camera run, which numbers on after every file there.)
-const OUTPUT_DIRS: [&str; 4] = ["frames", "plate", "twin", "masks"];
-
-impl Take {
-    /// Whether the passes asked for exist for a logged frame.
-    fn has_passes(&self, e: &Entry) -> bool {
-        let dirs = self.passes.dirs();
-        if dirs.is_empty() {
-            return true;
-        }
-        let have = e.passes.as_deref().unwrap_or(&[]);
-        dirs.iter().all(|d| {
-            let p = format!("{d}/{}", frame_name(e.index));
-            have.contains(&p) && self.out.join(&p).is_file()
-        })
-    }
-
-    /// Why the files of a logged frame cannot be kept (None when every one matches what the
-    /// log records as written).
-    fn mismatch(&self, e: &Entry) -> Option<String> {
-        let Some(written) = &e.written else {
-            return Some(
-                "the log has no record of what was written (a take of an older version)".into(),
-            );
-        };
-        let recorded = |p: &String| written.iter().any(|w| &w.path == p);
-        if let Some(p) = e
-            .output
-            .iter()
-            .chain(e.passes.iter().flatten())
-            .find(|p| !recorded(p))
-        {
-            return Some(format!("the log has no record of {p}"));
-        }
-        written.iter().find_map(|w| w.mismatch(&self.out))
-    }
-
-    fn plan(&self, i: usize, name: &str, stamp: (u64, u64)) -> Plan {
-        match self.entries.get(&i) {
-            None => Plan::Process(None),
-            Some(_) if self.stale.contains(&i) => {
-                Plan::Process(Some(format!("settings changed: frame {i} re-rendered")))
-            }
-            Some(e) if e.input != name || (e.input_bytes, e.input_mtime_ns) != stamp => {
-                Plan::Process(Some(if e.output.is_some() {
-                    format!("re-shot: frame {i} replaced ({name})")
-                } else {
-                    format!(
-                        "re-shot: {} {i} ({name}) was skipped before; trying again",
-                        self.unit
-                    )
-                }))
-            }
-            Some(e) => match &e.output {
-                Some(o) if self.out.join(o).is_file() && self.has_passes(e) => {
-                    match self.mismatch(e) {
-                        None => Plan::Done,
-                        Some(why) => Plan::Process(Some(format!("frame {i} re-rendered: {why}"))),
-                    }
-                }
-                Some(_) => Plan::Process(None),
-                None => Plan::Done,
-            },
-        }
-    }
-
-    fn new_entry(&self, input: &InputFrame, anim_frame: u32) -> Entry {
-        Entry {
-            index: input.index,
-            input: input.name.clone(),
-            input_bytes: input.stamp.0,
-            input_mtime_ns: input.stamp.1,
-            anim_frame,
-            key_pose: self.key_name.clone(),
-            state: None,
-            camera_from_marker: None,
-            reprojection_px: None,
-            timings_ms: None,
-            output: None,
-            skipped: None,
-            passes: None,
-            written: None,
-            exposure: self.exposure,
-            bit_depth: self.bit_depth,
-            shot_hash: self.shot_hash.clone(),
-        }
-    }
-}
-
-/// Files in the take's output folders that the log does not know.
-fn foreign_files(take: &Take) -> Result<Vec<String>> {
-    let mut known: HashSet<String> = HashSet::new();
-    for e in take.entries.values() {
-        known.extend(e.output.iter().cloned());
-        known.extend(e.passes.iter().flatten().cloned());
-    }
-    let mut foreign = Vec::new();
-    for dir in OUTPUT_DIRS {
-        let path = take.out.join(dir);
-        let Ok(rd) = std::fs::read_dir(&path) else {
-            continue;
-        };
-        for e in rd.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            if name.starts_with('.') {
-                continue;
-            }
-            let rel = format!("{dir}/{name}");
-            if !known.contains(&rel) {
-                foreign.push(rel);
-            }
-        }
-    }
-    foreign.sort_by(|a, b| super::track::natural_cmp(a, b));
-    Ok(foreign)
-}
-
-/// The highest index of the `NNNNNN.png` files in `dir`.
-fn last_numbered(dir: &Path) -> Option<usize> {
-    std::fs::read_dir(dir)
-        .ok()?
-        .flatten()
-        .filter_map(|e| {
-            let name = e.file_name().to_string_lossy().into_owned();
-            let stem = name.strip_suffix(".png")?;
-            (stem.len() == 6 && stem.bytes().all(|b| b.is_ascii_digit()))
-                .then(|| stem.parse().ok())
-                .flatten()
-        })
-        .max()
-}
-
-/// Where a camera run starts numbering: after the take's last logged frame and after every
-/// captured input (a capture cut short may have saved an input it never logged: kept).
-fn camera_start_index(take: &Take) -> usize {
-    let logged = take.entries.keys().next_back().map(|i| i + 1);
-    let saved = last_numbered(&take.out.join("inputs")).map(|i| i + 1);
-    logged.max(saved).unwrap_or(0)
-}
-
-/// Takes the take's lock (`DIR/.lock`), or fails naming the run that holds it. On a
-/// read-only file system no run can write the take: no lock is needed (and none can be made).
-fn lock_take(out: &Path) -> Result<Option<pa_io::FileLock>> {
-    let holder = format!(
-        "propsalive run, pid {}, started at unix time {}",
-        std::process::id(),
-        std::time::SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs())
-    );
-    match pa_io::FileLock::try_acquire(&out.join(".lock"), &holder) {
-        Ok(lock) => Ok(Some(lock)),
-        Err(pa_io::IoError::Locked { holder, .. }) => bail!(
-            "{}: another run is writing this take ({holder}); wait for it to end, or use another --out folder",
-            out.display()
-        ),
-        Err(pa_io::IoError::Io { source, .. })
-            if source.kind() == std::io::ErrorKind::ReadOnlyFilesystem =>
-        {
-            Ok(None)
-        }
-        Err(e) => Err(e.into()),
-    }
-}
-
-/// Refuses a take whose folders (`frames/`, ...) are symbolic links or not folders: a take
-/// never follows a link out of itself.
-fn check_take_folders(out: &Path) -> Result<()> {
-    for d in TAKE_DIRS {
-        let p = out.join(d);
-        if let Ok(meta) = std::fs::symlink_metadata(&p) {
-            if !meta.is_dir() {
-                bail!(
-                    "{}: is {}, not a folder; a take's {d}/ must be a real folder inside it",
-                    p.display(),
-                    pa_io::kind_of(&meta)
-                );
-            }
-        }
-    }
-    for f in ["log.jsonl", "camera.gltf", "mp4.json"] {
-        let p = out.join(f);
-        if let Ok(meta) = std::fs::symlink_metadata(&p) {
-            if !meta.is_file() {
-                bail!(
-                    "{}: is {}, not a regular file",
-                    p.display(),
-                    pa_io::kind_of(&meta)
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Removes temporary files a killed run left behind (`.NAME.tmp-PID`).
-fn remove_stale_temps(dir: &Path) {
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            if pa_io::is_temp_name(&name) {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
-}
-
 /// Progress on stderr: a bar with frames/s and the time left on a terminal, a plain line
 /// every 10 s otherwise. Messages go through [`Progress::say`] so they do not tear the bar.
 struct Progress {
@@ -1525,7 +881,7 @@ fn run_take(
         }
         let name = input.name.clone();
         let anim_frame = (i / take.exposure as usize) as u32;
-        let mut entry = take.new_entry(&input, anim_frame);
+        let mut entry = take.new_entry(input.index, &input.name, input.stamp, anim_frame);
         let decoded = decode_pixels(input.pixels);
         let img = match decoded {
             Ok(img) if (img.width(), img.height()) != (take.width, take.height) => {
@@ -1943,8 +1299,8 @@ fn finish(
     Ok(())
 }
 
-/// Writes `camera.gltf` from the log's poses of stills `0..n` (a resumed run exports the whole
-/// take). No pose at all is a note, not an error: the frames are there.
+/// Writes `camera.gltf` from the log's poses of stills `0..n` ([`pa_take::camera_export`])
+/// and says what it did.
 fn export_camera(
     out: &Path,
     entries: &BTreeMap<usize, Entry>,
@@ -1952,123 +1308,13 @@ fn export_camera(
     intrinsics: &Intrinsics,
     fps: f32,
 ) -> Result<()> {
-    let poses: Vec<(usize, Option<glam::Mat4>)> = entries
-        .values()
-        .filter(|e| e.index < n)
-        .map(|e| {
-            let pose = e
-                .camera_from_marker
-                .as_deref()
-                .filter(|m| m.len() == 16)
-                .map(glam::Mat4::from_cols_slice);
-            (e.index, pose)
-        })
-        .collect();
-    if !poses.iter().any(|(_, p)| p.is_some()) {
-        errln!("note: no still of the take was tracked: no camera.gltf written");
-        return Ok(());
-    }
-    let doc = super::camera_export::camera_gltf(&poses, intrinsics, fps)?;
-    let path = out.join("camera.gltf");
-    write_durable_if_changed(&path, doc.json.as_bytes())?;
-    errln!(
-        "camera: {} tracked still(s) exported to {} (glTF 2.0, Y-up, {} fps)",
-        doc.keys,
-        path.display(),
-        fps
-    );
+    let exported = pa_take::camera_export::export_camera(out, entries, n, intrinsics, fps)?;
+    errln!("{exported}");
     Ok(())
 }
 
-// --- MP4 -----------------------------------------------------------------------------------
-
-/// What `mp4.json` records of the MP4 a take wrote.
-#[derive(Debug, Serialize, Deserialize, PartialEq)]
-struct Mp4Record {
-    path: String,
-    bytes: u64,
-    mtime_ns: u64,
-    frames: u64,
-    fps: f32,
-    /// XXH3-64 of the frames it was made from (their indices and recorded hashes), so a
-    /// re-run with nothing new knows the MP4 is current.
-    #[serde(default)]
-    take_hash: String,
-}
-
-/// The identity of the frames `0..n` an MP4 is made from.
-fn take_hash(entries: &BTreeMap<usize, Entry>, n: usize) -> String {
-    let mut text = String::new();
-    for e in entries.values().filter(|e| e.index < n) {
-        if let (Some(_), Some(w)) = (&e.output, &e.written) {
-            text.push_str(&format!("{} {}\n", e.index, w[0].xxh3));
-        }
-    }
-    format!("{:016x}", xxhash_rust::xxh3::xxh3_64(text.as_bytes()))
-}
-
-/// True when `mp4` is this take's and was made from exactly the frames it holds now.
-fn mp4_is_current(mp4: &Path, out: &Path, hash: &str) -> bool {
-    our_mp4_record(mp4, out).is_some_and(|r| r.take_hash == hash)
-}
-
-fn absolute(p: &Path) -> PathBuf {
-    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
-}
-
-/// True when `mp4` is the file this take last wrote (same path, size and mtime).
-fn mp4_is_ours(mp4: &Path, out: &Path) -> bool {
-    our_mp4_record(mp4, out).is_some()
-}
-
-/// The take's `mp4.json`, when `mp4` is the file it records (same path, size and mtime).
-fn our_mp4_record(mp4: &Path, out: &Path) -> Option<Mp4Record> {
-    let text = pa_io::read_regular(&out.join("mp4.json"), 1 << 20, "mp4.json").ok()?;
-    let rec = serde_json::from_slice::<Mp4Record>(&text).ok()?;
-    let stamp = file_stamp(mp4).ok()?;
-    (rec.path == absolute(mp4).display().to_string() && (rec.bytes, rec.mtime_ns) == stamp)
-        .then_some(rec)
-}
-
-/// Refuses an `--mp4` target that is a folder, or an existing file that is not this take's,
-/// before any work.
-fn check_mp4_target(mp4: &Path, out: &Path, force: bool) -> Result<()> {
-    if mp4.is_dir() {
-        bail!("--mp4 {} is a folder; give a file name", mp4.display());
-    }
-    if mp4.exists() && !force && !mp4_is_ours(mp4, out) {
-        bail!(
-            "--mp4 {} exists and is not the MP4 this take wrote; pass --force to replace it, or name another file",
-            mp4.display()
-        );
-    }
-    Ok(())
-}
-
-/// Removes what a killed MP4 writer left (`.NAME.PID.N.partial` beside the target).
-fn remove_stale_partials(mp4: &Path) {
-    let (Some(dir), Some(name)) = (mp4.parent(), mp4.file_name()) else {
-        return;
-    };
-    let dir = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
-    };
-    let prefix = format!(".{}.", name.to_string_lossy());
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            let n = e.file_name().to_string_lossy().into_owned();
-            if n.starts_with(&prefix) && n.ends_with(".partial") {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
-}
-
-/// Encodes the take's frames `0..n` in index order at `fps` as an H.264 MP4. A frame the take
-/// lacks (a skipped still) holds the one before it (the first frame for a leading gap), so
-/// the MP4 keeps the take's timing.
+/// Encodes the take's frames `0..n` as an H.264 MP4 ([`pa_take::mp4::write_mp4`]) and says
+/// what it wrote.
 fn write_mp4(
     mp4: &Path,
     out: &Path,
@@ -2077,92 +1323,15 @@ fn write_mp4(
     fps: f32,
     force: bool,
 ) -> Result<()> {
-    let frames: BTreeMap<usize, PathBuf> = entries
-        .values()
-        .filter(|e| e.index < n)
-        .filter_map(|e| Some((e.index, out.join(e.output.as_ref()?))))
-        .filter(|(_, p)| p.is_file())
-        .collect();
-    let (Some((&first, first_path)), Some(&last)) = (frames.iter().next(), frames.keys().last())
-    else {
-        errln!("note: the take has no frame: no MP4 written");
-        return Ok(());
-    };
-    let read = |p: &Path| -> Result<image::RgbaImage> {
-        Ok(pa_video::still::read_still(p, &StillBudget::default())
-            .with_context(|| format!("reading {} for the MP4", p.display()))?
-            .to_rgba8())
-    };
-    let first_img = read(first_path)?;
-    let (w, h) = first_img.dimensions();
-    let overwrite = mp4.exists() && (force || mp4_is_ours(mp4, out));
-    if mp4.exists() && !overwrite {
-        bail!(
-            "--mp4 {} exists and is not the MP4 this take wrote; pass --force to replace it",
-            mp4.display()
-        );
-    }
-    if let Some(dir) = mp4.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
-    remove_stale_partials(mp4);
-    let rate = Fps::from_f64(fps as f64)?;
-    let mut options = Mp4WriterOptions::new(rate);
-    options.overwrite = overwrite;
-    let mut writer = Mp4Writer::create(mp4, w, h, options)?;
-    let mut held = 0usize;
-    let mut current = first_img;
-    for i in 0..=last {
-        match frames.get(&i) {
-            Some(p) if i != first => {
-                let img = read(p)?;
-                if img.dimensions() != (w, h) {
-                    bail!(
-                        "{} is {}x{} but the take's first frame is {w}x{h}: cannot encode them in one MP4",
-                        p.display(),
-                        img.width(),
-                        img.height()
-                    );
-                }
-                current = img;
-            }
-            Some(_) => {}
-            None => held += 1,
-        }
-        writer.write_frame(current.as_raw())?;
-    }
-    // `finish` renames the file into place and syncs its folder.
-    let summary = writer.finish()?;
-    let (bytes, mtime_ns) = file_stamp(mp4)?;
-    let rec = Mp4Record {
-        path: absolute(mp4).display().to_string(),
-        bytes,
-        mtime_ns,
-        frames: summary.frames,
-        fps,
-        take_hash: take_hash(entries, n),
-    };
-    write_durable(
-        &out.join("mp4.json"),
-        serde_json::to_string_pretty(&rec)?.as_bytes(),
-    )?;
-    errln!(
-        "mp4: {} frame(s) at {rate} fps, {:.1} MB, H.264 -> {}{}",
-        summary.frames,
-        summary.bytes as f64 / 1e6,
-        mp4.display(),
-        if held > 0 {
-            format!(" ({held} frame(s) the take lacks hold the frame before)")
-        } else {
-            String::new()
-        }
-    );
+    let written = pa_take::mp4::write_mp4(mp4, out, entries, n, fps, force)?;
+    errln!("{}", written.line(mp4));
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use pa_take::mp4::mp4_is_ours;
     use pa_video::{Frame, Timestamp, VideoError};
 
     /// A fake live camera: `frames` frames, then "disconnected" once, then nothing.

@@ -47,9 +47,6 @@ use pa_track::{
 use pa_video::source::{has_ext, Next, Pixels, Source, StillsSource, VideoSource};
 use serde_json::{json, Value};
 
-/// Natural order of file names (`pa_video::source`), also used by `run`.
-pub use pa_video::source::natural_cmp;
-
 #[derive(clap::Args)]
 pub struct Args {
     /// An image (.png, .jpg, .tif), a folder of images (processed in natural order) or a
@@ -168,27 +165,12 @@ pub fn fit_intrinsics(
     calib_name: &str,
     frame_name: &str,
 ) -> Result<Intrinsics> {
-    if k.width == width && k.height == height {
-        return Ok(*k);
+    let fitted =
+        pa_pipeline::shot_config::fit_intrinsics(k, width, height, calib_name, frame_name)?;
+    if let Some(note) = &fitted.scaled {
+        errln!("{note}");
     }
-    let a_cal = k.width as f64 / k.height as f64;
-    let a_img = width as f64 / height as f64;
-    if ((a_cal - a_img) / a_cal).abs() > 0.005 {
-        bail!(
-            "{frame_name} is {width}x{height} but the calibration {calib_name} is for {}x{} (aspect {:.4} vs {:.4}): a different aspect ratio means a crop or another camera mode; calibrate at this resolution",
-            k.width,
-            k.height,
-            a_img,
-            a_cal
-        );
-    }
-    errln!(
-        "note: {frame_name} is {width}x{height} but the calibration {calib_name} is for {}x{}; scaling the intrinsics by {:.4} (same aspect ratio)",
-        k.width,
-        k.height,
-        width as f64 / k.width as f64
-    );
-    Ok(k.scaled_to(width, height))
+    Ok(fitted.value)
 }
 
 fn draw_path(dir: &Path, frame: &Path) -> PathBuf {

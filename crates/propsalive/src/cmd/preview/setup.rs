@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_pipeline::shot::Shot;
+use pa_pipeline::shot_config;
 use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
@@ -131,8 +132,12 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
                 (Box::new(source), w, h, device.display().to_string(), true)
             }
         };
-    let camera = run::camera_for_shot(&shot, shot_path, width, height, &first)?;
-    let board = run::board_from_shot(&shot, shot_path)?;
+    let camera = shot_config::camera_for_shot(&shot, shot_path, width, height, &first)?;
+    if let Some(note) = &camera.scaled {
+        errln!("{note}");
+    }
+    let camera = camera.value;
+    let board = shot_config::board_from_shot(&shot, shot_path)?;
     let axes_len_m = board
         .tags
         .iter()

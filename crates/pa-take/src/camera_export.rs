@@ -35,10 +35,15 @@
 //! principal point; the exact `fx, fy, cx, cy, width, height` are kept in the camera's
 //! `extras` for tools that can use them.
 
-use anyhow::{bail, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use pa_camera::Intrinsics;
 use serde_json::json;
+
+use crate::log::{write_durable_if_changed, Entry};
+use crate::TakeError;
 
 /// Near plane of the exported camera, metres.
 pub const ZNEAR_M: f32 = 0.01;
@@ -72,9 +77,9 @@ fn local_trs(camera_from_marker: &Mat4) -> (Vec3, Quat) {
 }
 
 /// Checks that a pose is finite and rigid (orthonormal rotation, no scale or shear).
-fn check_pose(index: usize, p: &Mat4) -> Result<()> {
+fn check_pose(index: usize, p: &Mat4) -> Result<(), TakeError> {
     if !p.is_finite() {
-        bail!("still {index}: camera_from_marker is not finite");
+        return Err(TakeError::PoseNotFinite { index });
     }
     let r = Mat3::from_mat4(*p);
     let err = (r.transpose() * r - Mat3::IDENTITY).to_cols_array();
@@ -83,7 +88,7 @@ fn check_pose(index: usize, p: &Mat4) -> Result<()> {
         || (r.determinant() - 1.0).abs() > 1e-3
         || bottom.abs().max_element() > 1e-6
     {
-        bail!("still {index}: camera_from_marker is not a rigid transform");
+        return Err(TakeError::PoseNotRigid { index });
     }
     Ok(())
 }
@@ -98,32 +103,30 @@ pub fn camera_gltf(
     poses: &[(usize, Option<Mat4>)],
     k: &Intrinsics,
     fps: f32,
-) -> Result<CameraGltf> {
+) -> Result<CameraGltf, TakeError> {
     if !(fps.is_finite() && fps > 0.0) {
-        bail!("camera export: fps must be positive, got {fps}");
+        return Err(TakeError::ExportFps { fps });
     }
     if !(k.fy.is_finite() && k.fy > 0.0 && k.width > 0 && k.height > 0) {
-        bail!(
-            "camera export: bad intrinsics (fy {}, {}x{})",
-            k.fy,
-            k.width,
-            k.height
-        );
+        return Err(TakeError::ExportIntrinsics {
+            fy: k.fy,
+            width: k.width,
+            height: k.height,
+        });
     }
     let mut keyed: Vec<(usize, Mat4)> = poses
         .iter()
         .filter_map(|(i, p)| p.map(|p| (*i, p)))
         .collect();
     if keyed.is_empty() {
-        bail!(
-            "camera export: none of the {} still(s) has a camera pose (no marker tracked): nothing to export",
-            poses.len()
-        );
+        return Err(TakeError::ExportNoPose {
+            stills: poses.len(),
+        });
     }
     keyed.sort_by_key(|(i, _)| *i);
     for w in keyed.windows(2) {
         if w[0].0 == w[1].0 {
-            bail!("camera export: still {} has two poses", w[0].0);
+            return Err(TakeError::ExportTwoPoses { index: w[0].0 });
         }
     }
     let n = keyed.len();
@@ -237,6 +240,72 @@ pub fn camera_gltf(
     Ok(CameraGltf {
         json: serde_json::to_string_pretty(&doc)?,
         keys: n,
+    })
+}
+
+/// What [`export_camera`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Exported {
+    /// No still of the take was tracked: nothing written.
+    NoPose,
+    /// `camera.gltf` written at `path` (or already holding exactly this document).
+    Written {
+        path: PathBuf,
+        /// Animation keys: stills with a pose.
+        keys: usize,
+        fps: f32,
+    },
+}
+
+impl std::fmt::Display for Exported {
+    /// The line `propsalive run` prints.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Exported::NoPose => write!(
+                f,
+                "note: no still of the take was tracked: no camera.gltf written"
+            ),
+            Exported::Written { path, keys, fps } => write!(
+                f,
+                "camera: {keys} tracked still(s) exported to {} (glTF 2.0, Y-up, {fps} fps)",
+                path.display()
+            ),
+        }
+    }
+}
+
+/// Writes `camera.gltf` in the take folder `out` from the log's poses of stills `0..n` (a
+/// resumed run exports the whole take), unless it already holds exactly this document. No
+/// pose at all is not an error: the frames are there ([`Exported::NoPose`]).
+pub fn export_camera(
+    out: &Path,
+    entries: &BTreeMap<usize, Entry>,
+    n: usize,
+    intrinsics: &Intrinsics,
+    fps: f32,
+) -> Result<Exported, TakeError> {
+    let poses: Vec<(usize, Option<Mat4>)> = entries
+        .values()
+        .filter(|e| e.index < n)
+        .map(|e| {
+            let pose = e
+                .camera_from_marker
+                .as_deref()
+                .filter(|m| m.len() == 16)
+                .map(Mat4::from_cols_slice);
+            (e.index, pose)
+        })
+        .collect();
+    if !poses.iter().any(|(_, p)| p.is_some()) {
+        return Ok(Exported::NoPose);
+    }
+    let doc = camera_gltf(&poses, intrinsics, fps)?;
+    let path = out.join("camera.gltf");
+    write_durable_if_changed(&path, doc.json.as_bytes())?;
+    Ok(Exported::Written {
+        path,
+        keys: doc.keys,
+        fps,
     })
 }
 
