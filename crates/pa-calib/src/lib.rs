@@ -37,11 +37,13 @@
 //! # Modules
 //!
 //! [`chessboard`] finds chessboard corners; [`solve`] initialises (Zhang) and refines
-//! (Levenberg-Marquardt) the camera; [`yaml`] writes the OpenCV file; [`synth`] renders
-//! synthetic views of a known camera, for tests and measurements.
+//! (Levenberg-Marquardt) the camera; [`yaml`] writes the OpenCV file; [`report`] is the text
+//! summary `propsalive calibrate` prints; [`synth`] renders synthetic views of a known camera,
+//! for tests and measurements.
 
 pub mod chessboard;
 mod linalg;
+pub mod report;
 pub mod solve;
 pub mod synth;
 pub mod yaml;

@@ -14,6 +14,7 @@
 //! - [`skin`] is the CPU reference of linear blend skinning `v' = sum_i w_i M_i v` plus morph
 //!   targets, in glTF world space (right-handed, +Y up, metres).
 //! - [`export`] writes a posed mesh as OBJ, STL or GLB.
+//! - [`describe`] is the bounded text summary of a model that `propsalive inspect` prints.
 //!
 //! # Hostile files
 //!
@@ -57,6 +58,7 @@
 pub mod accessor;
 pub mod anim;
 mod budget;
+pub mod describe;
 pub mod export;
 mod flat;
 mod load;

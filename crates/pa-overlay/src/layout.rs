@@ -63,6 +63,18 @@ pub fn initial_window(canvas: (u32, u32), max: (u32, u32)) -> (u32, u32) {
     }
 }
 
+/// The camera model at a frame size (the calibration scaled when they differ).
+pub fn frame_camera(camera: &pa_camera::CameraModel, w: u32, h: u32) -> pa_camera::CameraModel {
+    if (camera.intrinsics.width, camera.intrinsics.height) == (w, h) {
+        *camera
+    } else {
+        pa_camera::CameraModel {
+            intrinsics: camera.intrinsics.scaled_to(w, h),
+            distortion: camera.distortion,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,5 +154,22 @@ mod tests {
         let (w, h) = initial_window((3840, 2195), (1280, 800));
         assert!(w <= 1280 && h <= 800);
         assert_eq!(w, 1280);
+    }
+
+    #[test]
+    fn the_camera_is_scaled_to_the_frame() {
+        let cam = pa_camera::CameraModel::pinhole(pa_camera::Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 63.5,
+            cy: 47.5,
+            width: 128,
+            height: 96,
+        });
+        assert_eq!(frame_camera(&cam, 128, 96), cam);
+        let half = frame_camera(&cam, 64, 48);
+        assert_eq!(half.intrinsics, cam.intrinsics.scaled_to(64, 48));
+        assert_eq!((half.intrinsics.width, half.intrinsics.height), (64, 48));
+        assert_eq!(half.distortion, cam.distortion);
     }
 }

@@ -8,13 +8,19 @@
 //! - [`action`]: what the user can ask the preview for, and the key list.
 //! - [`state`]: the preview's state machine (animation frame, play/pause, key pose, overlays);
 //!   an [`action::Action`] in, the new state and an [`state::Effect`] for the window code out.
-//! - [`layout`]: letterboxing and the window -> canvas -> animation frame mapping.
+//! - [`layout`]: letterboxing and the window -> canvas -> animation frame mapping; the camera
+//!   model at a frame size.
+//! - [`detections`]: `propsalive track --draw`'s debug frames (detection outlines, marker
+//!   axes) on an RGB copy of the grey frame.
+//! - [`meter`]: the preview's smoothed fps and latency summary.
 //! - [`sheet`]: marker sheets (one tag or a board) as SVG at physical size and PNG at a DPI.
 
 pub mod action;
+pub mod detections;
 pub mod draw;
 pub mod hud;
 pub mod layout;
+pub mod meter;
 pub mod sheet;
 pub mod state;
 

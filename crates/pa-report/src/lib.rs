@@ -2,6 +2,9 @@
 //! documents, the summary statistics behind them (means, medians, 95th percentiles) and the
 //! hand-drawn SVG plots, written atomically through `pa-io`.
 //!
+//! Also the JSON lines of `propsalive track` ([`track`], from `pa-track`'s outputs) and the
+//! probes of the machine a benchmark runs on ([`system`]: memory, load, CPU, from `/proc`).
+//!
 //! The measuring (running the pipeline, timing it) stays with the caller, which hands plain
 //! numbers in ([`eval::EvalReport`], [`bench::BenchReport`]); every function here is pure
 //! except the `write` ones. GPU-free: no renderer, no pipeline types.
@@ -10,6 +13,8 @@ pub mod bench;
 pub mod eval;
 pub mod plot;
 pub mod stats;
+pub mod system;
+pub mod track;
 
 use std::path::{Path, PathBuf};
 

@@ -4,10 +4,12 @@
 //! neck turn, a nod and a jaw) as a GLB that goes through the same loader as users' models.
 //! [`scene`] puts it on an AprilTag board on a textured table under a light, and renders what a
 //! moving camera sees: the physical key prop (the input), the in-between poses as if printed
-//! (the ground truth), and a clean plate.
+//! (the ground truth), and a clean plate. [`methods`] lists the pipeline configurations
+//! `propsalive eval` compares.
 
 mod error;
 pub mod eval;
+pub mod methods;
 pub mod prop;
 pub mod scene;
 

@@ -86,8 +86,8 @@ const ALLOWED: &[(&str, &[&str], &str)] = &[
     ),
     (
         "pa-report",
-        &["pa-io", "pa-camera"],
-        "reports take plain numbers: no renderer, no pipeline",
+        &["pa-io", "pa-camera", "pa-track"],
+        "reports take plain numbers (and the tracker's per-frame outputs): no renderer, no pipeline",
     ),
     (
         "pa-overlay",

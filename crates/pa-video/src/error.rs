@@ -218,6 +218,23 @@ pub enum VideoError {
         path: PathBuf,
     },
 
+    /// A video read at random ([`crate::source::SeekableVideo`]) turned out to have no frames.
+    #[error("{path}: the video has no frames")]
+    NoFrames {
+        /// The video file.
+        path: PathBuf,
+    },
+
+    /// A frame a seek asked for could not be reached (the video ended before it, with no
+    /// frame decoded on the way).
+    #[error("{path}: cannot reach frame {frame}")]
+    FrameOutOfReach {
+        /// The video file.
+        path: PathBuf,
+        /// The frame asked for.
+        frame: usize,
+    },
+
     /// A folder of stills cannot be listed.
     #[error("reading folder {path}")]
     ReadFolder {

@@ -12,6 +12,8 @@
 //!   frame the decoder rejects is an [`Pixels::Unreadable`] frame (the reader goes on with
 //!   the next) until [`MAX_VIDEO_ERRORS_IN_ROW`] in a row; a camera that disappears is
 //!   [`Next::Lost`] (keep what was captured and end cleanly).
+//! * [`SeekableVideo`]: a video file read at random (any frame, forwards or back; back
+//!   rewinds), with each frame's pixels or why the decoder rejected it ([`SeekFrame`]).
 //!
 //! # The tracker policy
 //!
@@ -28,6 +30,7 @@
 //! uninterrupted one), never fewer.
 
 mod camera;
+mod seek;
 mod stills;
 mod video;
 
@@ -35,6 +38,7 @@ use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
 
 pub use camera::{open_camera, CameraSource};
+pub use seek::{SeekFrame, SeekableVideo, UnreadableFrame};
 pub use stills::StillsSource;
 pub use video::{VideoSource, MAX_VIDEO_ERRORS_IN_ROW};
 

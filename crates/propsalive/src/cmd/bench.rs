@@ -34,6 +34,7 @@ use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, Fill, RenderPath, StageTi
 use pa_render::Renderer;
 use pa_report::bench::{fps, BenchReport, BenchRow};
 use pa_report::stats::{mean, stat};
+use pa_report::system::{cpu_description, load_average, reset_peak_rss, status_mib};
 use pa_scene::eval::{measure, pipeline_for};
 use pa_scene::scene::marker_from_prop;
 use pa_scene::{PropSpec, Scene, SceneFrame, SceneSpec};
@@ -382,53 +383,6 @@ fn run_frame(
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
-}
-
-/// A memory figure of this process from /proc/self/status in MiB (Linux): `VmHWM` (peak
-/// resident set) or `VmRSS` (current).
-fn status_mib(field: &str) -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with(field))?;
-    let kb: f64 = line[field.len()..]
-        .trim_start_matches(':')
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kb / 1024.0)
-}
-
-/// Resets VmHWM to the current resident set (Linux 4.0+); false where that is not possible.
-fn reset_peak_rss() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
-/// The 1-minute load average (Linux), to tell a quiet machine from a busy one.
-fn load_average() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
-}
-
-/// The CPU model and the number of cores this process may use.
-fn cpu_description() -> (String, usize) {
-    let model = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, v)| v.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    (model, cores)
 }
 
 fn run_config(

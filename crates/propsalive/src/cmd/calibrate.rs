@@ -229,65 +229,7 @@ pub fn run(args: Args) -> Result<()> {
     );
     let result = cal.calibrate(&cfg.options)?;
 
-    outln!("per-view RMS reprojection error (px):");
-    for v in &result.views {
-        outln!(
-            "  {}: {:.3} (max {:.3}) over {} corners",
-            v.name,
-            v.rms_px,
-            v.max_px,
-            v.points
-        );
-    }
-    let (k, d, s) = (
-        result.camera.intrinsics,
-        result.camera.distortion,
-        result.std_dev,
-    );
-    outln!(
-        "camera {}x{} (value +- one standard deviation):",
-        k.width,
-        k.height
-    );
-    outln!(
-        "  fx = {:.3} +- {:.3} px, fy = {:.3} +- {:.3} px",
-        k.fx,
-        s.fx,
-        k.fy,
-        s.fy
-    );
-    outln!(
-        "  cx = {:.3} +- {:.3} px, cy = {:.3} +- {:.3} px",
-        k.cx,
-        s.cx,
-        k.cy,
-        s.cy
-    );
-    let fixed = |v: f64, sd: f64, is_fixed: bool| {
-        if is_fixed {
-            format!("{v} (fixed)")
-        } else {
-            format!("{v:.6} +- {sd:.6}")
-        }
-    };
-    outln!(
-        "  distortion k1 = {}, k2 = {}",
-        fixed(d.k1, s.k1, false),
-        fixed(d.k2, s.k2, false)
-    );
-    outln!(
-        "             p1 = {}, p2 = {}, k3 = {}",
-        fixed(d.p1, s.p1, cfg.options.fix_tangential),
-        fixed(d.p2, s.p2, cfg.options.fix_tangential),
-        fixed(d.k3, s.k3, cfg.options.fix_k3)
-    );
-    outln!(
-        "RMS reprojection error: {:.4} px over {} corners in {} views ({} iterations)",
-        result.rms_px,
-        result.points(),
-        result.views.len(),
-        result.iterations
-    );
+    out!("{}", pa_calib::report::summary(&result, &cfg.options));
     for w in &result.warnings {
         errln!("warning: {w}");
     }

@@ -8,12 +8,12 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use pa_pipeline::ar::{ArSettings, Fill, Texturing};
 use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
 use pa_scene::eval::run_scene;
-use pa_scene::scene::{Background, CameraPath};
+use pa_scene::methods::methods;
+use pa_scene::scene::Background;
 use pa_scene::SceneSpec;
 
 #[derive(clap::Args)]
@@ -30,85 +30,6 @@ pub struct Args {
     /// Use every Nth frame of the 49-frame clip (1 = all).
     #[arg(long, default_value_t = 2)]
     pub stride: u32,
-}
-
-struct Method {
-    name: &'static str,
-    settings: ArSettings,
-    key_frames: Vec<u32>,
-    camera_path: CameraPath,
-}
-
-fn methods() -> Vec<Method> {
-    let ours = ArSettings::ours();
-    vec![
-        Method {
-            name: "paper (live, no visibility, rectangle fill)",
-            settings: ArSettings::paper(),
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "live + visibility, rectangle fill",
-            settings: ArSettings {
-                fill: Fill::PaperRectangle,
-                ..ours
-            },
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "live, no visibility, ray fill",
-            settings: ArSettings {
-                texturing: Texturing::Live { visibility: false },
-                ..ours
-            },
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "ours: live + visibility, ray fill",
-            settings: ours,
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "ours with clean plate",
-            settings: ArSettings {
-                fill: Fill::CleanPlate,
-                ..ours
-            },
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "model texture (no live sampling), ray fill",
-            settings: ArSettings {
-                texturing: Texturing::ModelTexture,
-                ..ours
-            },
-            key_frames: vec![0],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "ours, two key poses (frames 0 and 24)",
-            settings: ours,
-            key_frames: vec![0, 24],
-            camera_path: CameraPath::Handheld,
-        },
-        Method {
-            name: "tripod camera: paper",
-            settings: ArSettings::paper(),
-            key_frames: vec![0],
-            camera_path: CameraPath::Static,
-        },
-        Method {
-            name: "tripod camera: ours",
-            settings: ours,
-            key_frames: vec![0],
-            camera_path: CameraPath::Static,
-        },
-    ]
 }
 
 pub fn run(args: Args) -> Result<()> {

@@ -47,7 +47,6 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use pa_camera::CameraModel;
 use pa_pipeline::ar::{ArFrame, ArPipeline, Fill};
 use pa_pipeline::GpuTwin;
 use pa_render::{CpuCamera, Renderer};
@@ -65,8 +64,9 @@ use pa_overlay::{draw, hud, layout, state};
 use draw::Image;
 use hud::{BarLayout, Status};
 use keys::action_for;
-use layout::Rect;
+use layout::{frame_camera, Rect};
 use output::{Captures, JsonLog, Recording};
+use pa_overlay::meter::Meter;
 use present::{Presented, Presenter};
 use source::{FrameSource, Want};
 use state::{select_capture, Effect, PreviewState};
@@ -140,41 +140,6 @@ const MAX_WINDOW: (u32, u32) = (1280, 800);
 const MAX_SOURCE_FAILURES: u32 = 30;
 /// How long a message stays on screen.
 const TOAST: Duration = Duration::from_millis(2500);
-
-/// Frames-per-second and latency bookkeeping.
-#[derive(Default)]
-struct Meter {
-    last_present: Option<Instant>,
-    fps: Option<f64>,
-    latency_ms: Option<f64>,
-    latencies: Vec<f64>,
-}
-
-impl Meter {
-    fn presented(&mut self, now: Instant, latency_ms: f64) {
-        if let Some(prev) = self.last_present {
-            let dt = now.duration_since(prev).as_secs_f64();
-            if dt > 0.0 {
-                let f = 1.0 / dt;
-                self.fps = Some(self.fps.map_or(f, |old| 0.8 * old + 0.2 * f));
-            }
-        }
-        self.last_present = Some(now);
-        self.latency_ms = Some(latency_ms);
-        self.latencies.push(latency_ms);
-    }
-
-    /// (median, 95th percentile) latency, ms.
-    fn summary(&self) -> Option<(f64, f64)> {
-        if self.latencies.is_empty() {
-            return None;
-        }
-        let mut v = self.latencies.clone();
-        v.sort_by(f64::total_cmp);
-        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-        Some((at(0.5), at(0.95)))
-    }
-}
 
 /// The frame on screen and what is needed to redraw or save it.
 struct Shown {
@@ -582,18 +547,6 @@ impl Preview {
     }
 }
 
-/// The camera model at a frame size (the calibration scaled when they differ).
-fn frame_camera(camera: &CameraModel, w: u32, h: u32) -> CameraModel {
-    if (camera.intrinsics.width, camera.intrinsics.height) == (w, h) {
-        *camera
-    } else {
-        CameraModel {
-            intrinsics: camera.intrinsics.scaled_to(w, h),
-            distortion: camera.distortion,
-        }
-    }
-}
-
 /// Writes the presented canvas and where it is on screen (test hook).
 fn dump_presented(
     dir: &Path,
@@ -917,21 +870,6 @@ pub fn run(args: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn meter_smooths_fps_and_summarises_latency() {
-        let mut m = Meter::default();
-        let t = Instant::now();
-        m.presented(t, 50.0);
-        assert_eq!(m.fps, None);
-        m.presented(t + Duration::from_millis(100), 60.0);
-        assert!((m.fps.unwrap() - 10.0).abs() < 1e-6);
-        m.presented(t + Duration::from_millis(150), 70.0);
-        // 0.8 * 10 + 0.2 * 20.
-        assert!((m.fps.unwrap() - 12.0).abs() < 1e-6);
-        assert_eq!(m.summary(), Some((60.0, 70.0)));
-        assert_eq!(Meter::default().summary(), None);
-    }
 
     #[test]
     fn long_about_lists_the_keys() {

@@ -37,13 +37,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use glam::{DVec2, DVec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pa_camera::{CameraModel, Intrinsics};
-use pa_track::{
-    Board, Detection, DetectorConfig, Pose, TagFamily, TrackEvent, TrackOutput, TrackState,
-    TrackTarget, Tracker, TrackerConfig,
-};
+use pa_overlay::detections::draw_frame;
+/// `run.rs` names the state through here (`super::track::state_name`).
+pub(crate) use pa_report::track::state_name;
+use pa_report::track::{frame_json, round};
+use pa_track::{Board, DetectorConfig, TagFamily, TrackState, TrackTarget, Tracker, TrackerConfig};
 use pa_video::source::{has_ext, Next, Pixels, Source, StillsSource, VideoSource};
 use serde_json::{json, Value};
 
@@ -366,148 +366,6 @@ pub fn resolve(args: &Args) -> Result<Config> {
         draw: args.draw.clone(),
         axis_m: extent_m * 0.5,
     })
-}
-
-pub(crate) fn state_name(s: TrackState) -> &'static str {
-    match s {
-        TrackState::Searching => "searching",
-        TrackState::Detected => "detected",
-        TrackState::Tracked => "tracked",
-        TrackState::Lost => "lost",
-    }
-}
-
-fn event_name(e: TrackEvent) -> &'static str {
-    match e {
-        TrackEvent::Found => "found",
-        TrackEvent::Tracked => "tracked",
-        TrackEvent::Dropped => "dropped",
-        TrackEvent::Lost => "lost",
-        TrackEvent::Recovered => "recovered",
-        TrackEvent::SearchRestarted => "search_restarted",
-    }
-}
-
-fn round(v: f64, digits: i32) -> f64 {
-    let s = 10f64.powi(digits);
-    (v * s).round() / s
-}
-
-fn pose_json(p: &Pose, rms: Option<f64>) -> Value {
-    let q = p.rotation;
-    let t = p.translation;
-    let mut v = json!({
-        "rotation_xyzw": [round(q.x, 8), round(q.y, 8), round(q.z, 8), round(q.w, 8)],
-        "translation_m": [round(t.x, 7), round(t.y, 7), round(t.z, 7)],
-    });
-    if let Some(r) = rms {
-        v["reprojection_rms_px"] = json!(round(r, 4));
-    }
-    v
-}
-
-fn detection_json(d: &Detection) -> Value {
-    json!({
-        "family": d.family.name(),
-        "id": d.id,
-        "corners_px": d.corners_px.iter().map(|c| [round(c.x, 4), round(c.y, 4)]).collect::<Vec<_>>(),
-        "hamming": d.hamming,
-        "decision_margin": round(d.decision_margin as f64, 2),
-    })
-}
-
-/// One frame's JSON record.
-pub fn frame_json(index: usize, file: &str, w: u32, h: u32, out: &TrackOutput, ms: f64) -> Value {
-    let rms = out.raw.map(|r| r.rms_px);
-    json!({
-        "frame": index,
-        "file": file,
-        "width": w,
-        "height": h,
-        "state": state_name(out.state),
-        "events": out.events.iter().map(|e| event_name(*e)).collect::<Vec<_>>(),
-        "detections": out.detections.iter().map(detection_json).collect::<Vec<_>>(),
-        "pose": out.pose.map(|p| {
-            let mut v = json!({ "camera_from_marker": pose_json(&p, None) });
-            v["reprojection_rms_px"] = rms.map(|r| json!(round(r, 4))).unwrap_or(Value::Null);
-            v
-        }),
-        "measured_pose": out.raw.map(|r| json!({ "camera_from_marker": pose_json(&r.pose, Some(r.rms_px)) })),
-        "used_ids": out.used_ids,
-        "coasting": out.coasting,
-        "used_roi": out.used_roi,
-        "time_ms": round(ms, 3),
-    })
-}
-
-// --- drawing ------------------------------------------------------------------------------
-
-fn put(img: &mut image::RgbImage, x: i64, y: i64, c: [u8; 3]) {
-    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
-        img.put_pixel(x as u32, y as u32, image::Rgb(c));
-    }
-}
-
-fn dot(img: &mut image::RgbImage, p: DVec2, r: i64, c: [u8; 3]) {
-    let (cx, cy) = (p.x.round() as i64, p.y.round() as i64);
-    for dy in -r..=r {
-        for dx in -r..=r {
-            if dx * dx + dy * dy <= r * r {
-                put(img, cx + dx, cy + dy, c);
-            }
-        }
-    }
-}
-
-fn line(img: &mut image::RgbImage, a: DVec2, b: DVec2, thick: i64, c: [u8; 3]) {
-    if !(a.is_finite() && b.is_finite()) {
-        return;
-    }
-    let n = (a.distance(b).ceil() as usize).clamp(1, 20_000);
-    for i in 0..=n {
-        let p = a.lerp(b, i as f64 / n as f64);
-        dot(img, p, thick, c);
-    }
-}
-
-fn draw_frame(
-    gray: &image::GrayImage,
-    out: &TrackOutput,
-    camera: &CameraModel,
-    axis_m: f64,
-) -> image::RgbImage {
-    let mut img = image::DynamicImage::ImageLuma8(gray.clone()).to_rgb8();
-    let thick = ((gray.width().max(gray.height()) as f64 / 800.0).round() as i64).max(1);
-    for d in &out.detections {
-        let used = out.used_ids.contains(&d.id);
-        let col = if used { [0, 230, 0] } else { [255, 200, 0] };
-        for i in 0..4 {
-            line(
-                &mut img,
-                d.corners_px[i],
-                d.corners_px[(i + 1) % 4],
-                thick,
-                col,
-            );
-        }
-        // The printed top-left corner.
-        dot(&mut img, d.corners_px[0], 2 * thick + 1, [255, 0, 255]);
-    }
-    let pose = out.raw.map(|r| r.pose).or(out.pose);
-    if let Some(p) = pose {
-        let o = camera.pixel_from_camera(p.transform_point(DVec3::ZERO));
-        for (axis, col) in [
-            (DVec3::X, [255, 0, 0]),
-            (DVec3::Y, [0, 255, 0]),
-            (DVec3::Z, [0, 90, 255]),
-        ] {
-            let e = camera.pixel_from_camera(p.transform_point(axis * axis_m));
-            if let (Some(o), Some(e)) = (o, e) {
-                line(&mut img, o, e, thick, col);
-            }
-        }
-    }
-    img
 }
 
 // --- run -----------------------------------------------------------------------------------

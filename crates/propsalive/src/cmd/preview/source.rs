@@ -194,20 +194,14 @@ impl FrameSource for StillsSource {
 }
 
 /// A video file (a take filmed as a video): animation frame `i` shows frame `i` of the video
-/// (the last frame past the end), as `propsalive run` pairs them. Frames are decoded in
-/// order: playing forward decodes one frame a step; going back opens the file again and
-/// decodes from its start (a video is not seekable frame by frame), so scrubbing backwards
-/// through a long video is slow. A frame the decoder rejects is a grey frame saying why.
+/// (the last frame past the end), as `propsalive run` pairs them, through
+/// [`vs::SeekableVideo`] (forward one frame a step; back re-reads from the start). A frame
+/// the decoder rejects is a grey frame saying why.
 pub struct VideoSource {
-    video: vs::VideoSource,
+    video: vs::SeekableVideo,
     width: u32,
     height: u32,
     fps: f32,
-    /// Frames in the file, once the end was reached.
-    count: Option<usize>,
-    /// The last frame decoded (index, whether it starts the video's sequence, RGBA8 or why
-    /// it could not be decoded).
-    cache: Option<(usize, bool, std::result::Result<Vec<u8>, String>)>,
     /// Frames already warned about.
     warned: HashSet<usize>,
 }
@@ -215,15 +209,13 @@ pub struct VideoSource {
 impl VideoSource {
     /// Opens `path` (`pa-video`'s errors name the file, the codec and the feature).
     pub fn open(path: &Path, fps: f32) -> Result<Self> {
-        let video = vs::VideoSource::open(path)?;
+        let video = vs::SeekableVideo::open(path)?;
         let (width, height) = (video.info().width, video.info().height);
         Ok(Self {
             video,
             width,
             height,
             fps,
-            count: None,
-            cache: None,
             warned: HashSet::new(),
         })
     }
@@ -231,83 +223,28 @@ impl VideoSource {
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
     }
-
-    /// The frame index shown with animation frame `anim_frame`, once the length is known.
-    fn clamp(&self, anim_frame: u32) -> usize {
-        match self.count {
-            Some(n) if n > 0 => (anim_frame as usize).min(n - 1),
-            _ => anim_frame as usize,
-        }
-    }
-
-    /// Decodes up to frame `want` (or the last frame, if the video is shorter).
-    #[cfg(test)]
-    fn seek(&mut self, want: usize) -> Result<(usize, std::result::Result<Vec<u8>, String>)> {
-        self.seek_frame(want).map(|(i, _, data)| (i, data))
-    }
-
-    /// Decodes up to frame `want` (or the last frame, if the video is shorter): its index,
-    /// whether it starts the video's sequence, and its pixels or why they are missing.
-    #[allow(clippy::type_complexity)]
-    fn seek_frame(
-        &mut self,
-        want: usize,
-    ) -> Result<(usize, bool, std::result::Result<Vec<u8>, String>)> {
-        if let Some((k, starts, data)) = &self.cache {
-            if *k == want {
-                return Ok((*k, *starts, data.clone()));
-            }
-        }
-        if want < self.video.next_index() {
-            self.video.rewind()?;
-        }
-        // Each seek gets the full allowance of damaged frames in a row.
-        self.video.reset_error_run();
-        let mut last = None;
-        while self.video.next_index() <= want {
-            match self.video.next()? {
-                Next::Frame(f) => {
-                    let data = match f.pixels {
-                        Pixels::Frame(frame) => Ok(frame.rgba),
-                        Pixels::Unreadable(e) => Err(e.to_string()),
-                        Pixels::Still(p) => Err(format!("{}: not a video frame", p.display())),
-                    };
-                    last = Some((f.index, f.starts_sequence, data));
-                }
-                Next::End => {
-                    self.count = Some(self.video.next_index());
-                    break;
-                }
-                Next::Lost(e) => return Err(e.into()),
-            }
-        }
-        match last {
-            Some(found) => {
-                self.cache = Some(found.clone());
-                Ok(found)
-            }
-            // The end was reached before `want` with nothing new decoded: the last frame.
-            None => match self.count {
-                Some(0) => bail!("{}: the video has no frames", self.video.path().display()),
-                Some(n) if want >= n => self.seek_frame(n - 1),
-                _ => bail!("{}: cannot reach frame {want}", self.video.path().display()),
-            },
-        }
-    }
 }
 
 impl FrameSource for VideoSource {
     fn describe(&self) -> String {
-        format!("{}, frame i = animation frame i", self.video.describe())
+        format!(
+            "{}, frame i = animation frame i",
+            self.video.video().describe()
+        )
     }
 
     fn next_frame(&mut self, _renderer: &mut Renderer, want: &Want) -> Result<SourceFrame> {
-        let i = self.clamp(want.anim_frame);
-        let (i, starts_sequence, decoded) = self.seek_frame(i)?;
+        let i = self.video.clamp(want.anim_frame as usize);
+        let vs::SeekFrame {
+            index: i,
+            starts_sequence,
+            rgba: decoded,
+        } = self.video.seek(i)?;
         let rgba8 = match decoded {
             Ok(data) if data.len() == self.width as usize * self.height as usize * 4 => data,
             Ok(_) => placeholder(self.width, self.height, "a frame of another size"),
-            Err(msg) => {
+            Err(e) => {
+                let msg = e.message;
                 if self.warned.insert(i) {
                     errln!("warning: {msg}");
                 }
@@ -320,7 +257,7 @@ impl FrameSource for VideoSource {
             height: self.height,
             acquired: Instant::now(),
             time_s: i as f64 / self.fps as f64,
-            label: format!("{} frame {i}", self.video.name()),
+            label: format!("{} frame {i}", self.video.video().name()),
             starts_sequence,
         })
     }
@@ -487,42 +424,19 @@ mod tests {
     }
 
     #[test]
-    fn a_video_follows_the_animation_frame_forwards_and_back() {
+    fn a_video_source_has_the_video_size() {
+        // The seeking itself is `pa_video::source::SeekableVideo`'s (tested there).
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("take.mp4");
         let fps = pa_video::Fps::new(24, 1).unwrap();
         let mut w =
             pa_video::Mp4Writer::create(&path, 64, 48, pa_video::Mp4WriterOptions::new(fps))
                 .unwrap();
-        // Frame i is flat grey 40 + 40 i.
-        for i in 0..4u8 {
-            w.write_frame(&[40 + 40 * i, 40 + 40 * i, 40 + 40 * i, 255].repeat(64 * 48))
-                .unwrap();
-        }
+        w.write_frame(&[40, 40, 40, 255].repeat(64 * 48)).unwrap();
         w.finish().unwrap();
-        let mut s = VideoSource::open(&path, 24.0).unwrap();
+        let s = VideoSource::open(&path, 24.0).unwrap();
         assert_eq!(s.size(), (64, 48));
-        let grey = |s: &mut VideoSource, want: usize| -> (usize, u8) {
-            let (i, data) = s.seek(want).unwrap();
-            let data = data.unwrap();
-            (i, data[64 * 24 * 4 + 32 * 4])
-        };
-        let near = |v: u8, want: u8| v.abs_diff(want) <= 3;
-        let (i, v) = grey(&mut s, 2);
-        assert!(i == 2 && near(v, 120), "{i} {v}");
-        // Past the end: the last frame, and the length is known from then on.
-        let (i, v) = grey(&mut s, 9);
-        assert!(i == 3 && near(v, 160), "{i} {v}");
-        assert_eq!(s.count, Some(4));
-        assert_eq!(s.clamp(40), 3);
-        // Back: the file is read again from its start.
-        let (i, v) = grey(&mut s, 1);
-        assert!(i == 1 && near(v, 80), "{i} {v}");
-        let (i, v) = grey(&mut s, 1);
-        assert!(i == 1 && near(v, 80), "cached: {i} {v}");
-        // The tracker policy: a video is one sequence, started by its first frame.
-        assert!(s.seek_frame(0).unwrap().1, "frame 0 starts the sequence");
-        assert!(!s.seek_frame(2).unwrap().1, "frame 2 continues it");
+        assert!(s.describe().ends_with(", frame i = animation frame i"));
         let err = VideoSource::open(&dir.path().join("missing.mp4"), 24.0)
             .err()
             .unwrap()

@@ -1,0 +1,129 @@
+//! The methods `propsalive eval` compares on the generated scenes: the paper's pipeline, each
+//! of our changes alone, ours in full, ours with a clean plate, the model's own texture, two
+//! key poses, and the paper and ours on a tripod camera. The report's tables and curves are
+//! keyed by [`Method::name`] (curves are drawn for the methods named `ours:...`,
+//! `ours, two...` and `paper...`).
+
+use pa_pipeline::ar::{ArSettings, Fill, Texturing};
+
+use crate::scene::CameraPath;
+
+/// One compared method.
+pub struct Method {
+    /// The name in the report.
+    pub name: &'static str,
+    /// The pipeline's settings.
+    pub settings: ArSettings,
+    /// The animation frames of the key poses present.
+    pub key_frames: Vec<u32>,
+    /// How the camera moves.
+    pub camera_path: CameraPath,
+}
+
+/// The methods, in the report's order.
+pub fn methods() -> Vec<Method> {
+    let ours = ArSettings::ours();
+    vec![
+        Method {
+            name: "paper (live, no visibility, rectangle fill)",
+            settings: ArSettings::paper(),
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "live + visibility, rectangle fill",
+            settings: ArSettings {
+                fill: Fill::PaperRectangle,
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "live, no visibility, ray fill",
+            settings: ArSettings {
+                texturing: Texturing::Live { visibility: false },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours: live + visibility, ray fill",
+            settings: ours,
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours with clean plate",
+            settings: ArSettings {
+                fill: Fill::CleanPlate,
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "model texture (no live sampling), ray fill",
+            settings: ArSettings {
+                texturing: Texturing::ModelTexture,
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours, two key poses (frames 0 and 24)",
+            settings: ours,
+            key_frames: vec![0, 24],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "tripod camera: paper",
+            settings: ArSettings::paper(),
+            key_frames: vec![0],
+            camera_path: CameraPath::Static,
+        },
+        Method {
+            name: "tripod camera: ours",
+            settings: ours,
+            key_frames: vec![0],
+            camera_path: CameraPath::Static,
+        },
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_methods_are_pinned() {
+        let m = methods();
+        let names: Vec<_> = m.iter().map(|m| m.name).collect();
+        assert_eq!(
+            names,
+            [
+                "paper (live, no visibility, rectangle fill)",
+                "live + visibility, rectangle fill",
+                "live, no visibility, ray fill",
+                "ours: live + visibility, ray fill",
+                "ours with clean plate",
+                "model texture (no live sampling), ray fill",
+                "ours, two key poses (frames 0 and 24)",
+                "tripod camera: paper",
+                "tripod camera: ours",
+            ]
+        );
+        let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
+        assert_eq!(keys[6], [0, 24]);
+        assert!(keys.iter().enumerate().all(|(i, k)| i == 6 || k == &[0]));
+        let tripod = m
+            .iter()
+            .filter(|m| m.camera_path == CameraPath::Static)
+            .count();
+        assert_eq!(tripod, 2);
+        assert!(matches!(m[4].settings.fill, Fill::CleanPlate));
+        assert!(matches!(m[5].settings.texturing, Texturing::ModelTexture));
+    }
+}
