@@ -312,9 +312,83 @@ impl InputSource {
     }
 }
 
+/// An input resolved for a take: its source, what one of its frames is called in messages
+/// ("still" or "frame"), the input in words (for the summary), the take's size and what set
+/// it (the first readable still, the video, the camera device), for messages.
+pub struct ResolvedInput {
+    pub source: InputSource,
+    pub unit: &'static str,
+    pub desc: String,
+    pub width: u32,
+    pub height: u32,
+    pub first: String,
+}
+
+impl ResolvedInput {
+    /// A folder of stills (`stills`, listed from `dir`, in order): the take's size is its
+    /// first readable still's; none readable is an error.
+    pub fn stills(dir: &std::path::Path, stills: Vec<PathBuf>) -> Result<Self, TakeError> {
+        let (first, (width, height)) = first_readable_still(dir, &stills)?;
+        Ok(Self {
+            unit: "still",
+            desc: format!("{} still(s) in {}", stills.len(), dir.display()),
+            width,
+            height,
+            first: first.display().to_string(),
+            source: InputSource::Stills(stills),
+        })
+    }
+
+    /// A video file, opened (pa-video's errors name the file, the codec and the feature),
+    /// with its stamp; the note (when its rate is not the shot's `shot_fps`) to say.
+    pub fn video(path: PathBuf, shot_fps: f32) -> Result<(Self, Option<String>), TakeError> {
+        let reader = pa_video::VideoReader::open(&path)?;
+        let info = reader.info();
+        let (width, height) = (info.width, info.height);
+        let desc = pa_video::FrameSource::describe(&reader);
+        let stamp = file_stamp(&path)?;
+        let note = info.fps.and_then(|f| {
+            ((f.as_f64() - shot_fps as f64).abs() > 1e-3 * f.as_f64()).then(|| {
+                format!(
+                    "note: {} runs at {f} fps and the shot at {} fps: frame i is still i (animation frame i / exposure), whatever the video's timing",
+                    path.display(),
+                    shot_fps
+                )
+            })
+        });
+        let first = path.display().to_string();
+        let input = Self {
+            source: InputSource::Video {
+                reader,
+                path,
+                stamp,
+            },
+            unit: "frame",
+            desc,
+            width,
+            height,
+            first,
+        };
+        Ok((input, note))
+    }
+
+    /// A camera, opened, at `device`: the take's size is the format it answered with.
+    pub fn camera(camera: pa_video::Camera, device: &std::path::Path) -> Self {
+        let f = camera.format();
+        Self {
+            desc: pa_video::FrameSource::describe(&camera),
+            unit: "frame",
+            width: f.width,
+            height: f.height,
+            first: device.display().to_string(),
+            source: InputSource::Camera(camera),
+        }
+    }
+}
+
 /// The first readable still of `stills` (those listed in `dir`) and its size; none readable
 /// is an error naming the first failure.
-pub fn first_readable_still(
+fn first_readable_still(
     dir: &std::path::Path,
     stills: &[PathBuf],
 ) -> Result<(PathBuf, (u32, u32)), TakeError> {

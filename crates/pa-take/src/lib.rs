@@ -68,7 +68,7 @@ pub mod take;
 pub use error::TakeError;
 pub use frame::{FrameFile, FramePasses, Still};
 pub use input::{
-    decode_pixels, first_readable_still, InputFrame, InputSource, Next, TakeCamera, TakeSource,
+    decode_pixels, InputFrame, InputSource, Next, ResolvedInput, TakeCamera, TakeSource,
     TakeStills, TakeVideo,
 };
 pub use log::{

@@ -67,12 +67,12 @@ use pa_pipeline::shot_config;
 use pa_render::Renderer;
 use pa_take::mp4::{check_mp4_target, mp4_is_current, take_hash};
 use pa_take::{
-    camera_start_index, check_no_overlap, file_stamp, first_readable_still, hash_hex, open_take,
-    write_log, FramePasses, InputKind, InputSource, Next, Opened, PassSet, Plan, Still, Take,
-    TakeSettings, TakeSource, Tally, Timings,
+    camera_start_index, check_no_overlap, hash_hex, open_take, write_log, FramePasses, InputKind,
+    InputSource, Next, Opened, PassSet, Plan, ResolvedInput, Still, Take, TakeSettings, TakeSource,
+    Tally, Timings,
 };
 use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
-use pa_video::{Fps, Mp4Writer, VideoReader};
+use pa_video::{Fps, Mp4Writer};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -200,66 +200,32 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
     if args.camera_size.is_some() && !matches!(input, InputSpec::Camera(_)) {
         bail!("--camera-size is for a camera input (--input camera:/dev/videoN)");
     }
-    let (source, unit, input_desc, width, height, first_desc) = match input {
+    let resolved = match input {
         InputSpec::Folder(dir) => {
             let (stills, _) = super::track::list_frames(&dir)?;
-            let (first, (width, height)) = first_readable_still(&dir, &stills)?;
-            let first = first.display().to_string();
-            let desc = format!("{} still(s) in {}", stills.len(), dir.display());
-            (
-                InputSource::Stills(stills),
-                "still",
-                desc,
-                width,
-                height,
-                first,
-            )
+            ResolvedInput::stills(&dir, stills)?
         }
         InputSpec::Video(path) => {
-            // pa-video's errors name the file, the codec and the feature: said as they are.
-            let reader = VideoReader::open(&path)?;
-            let info = reader.info();
-            let (width, height) = (info.width, info.height);
-            let desc = pa_video::FrameSource::describe(&reader);
-            let stamp = file_stamp(&path)?;
-            if let Some(f) = info.fps {
-                if (f.as_f64() - shot.fps as f64).abs() > 1e-3 * f.as_f64() {
-                    errln!(
-                        "note: {} runs at {f} fps and the shot at {} fps: frame i is still i (animation frame i / exposure), whatever the video's timing",
-                        path.display(),
-                        shot.fps
-                    );
-                }
+            let (resolved, note) = ResolvedInput::video(path, shot.fps)?;
+            if let Some(note) = note {
+                errln!("{note}");
             }
-            let first = path.display().to_string();
-            (
-                InputSource::Video {
-                    reader,
-                    path,
-                    stamp,
-                },
-                "frame",
-                desc,
-                width,
-                height,
-                first,
-            )
+            resolved
         }
         InputSpec::Camera(device) => {
             let size = camera_request(args.camera_size.as_deref(), &shot, &args.shot)?;
             let camera = open_camera(&device, size, shot.fps)?;
-            let f = camera.format();
-            let desc = pa_video::FrameSource::describe(&camera);
-            (
-                InputSource::Camera(camera),
-                "frame",
-                desc,
-                f.width,
-                f.height,
-                device.display().to_string(),
-            )
+            ResolvedInput::camera(camera, &device)
         }
     };
+    let ResolvedInput {
+        source,
+        unit,
+        desc: input_desc,
+        width,
+        height,
+        first: first_desc,
+    } = resolved;
     if args.mp4.is_some() {
         // Before the take, not after it: OpenH264 refuses frames below 16x16.
         Mp4Writer::check_frame_size(width, height)

@@ -1,9 +1,9 @@
 use super::*;
 use pa_camera::Intrinsics;
 use pa_take::mp4::mp4_is_ours;
-use pa_take::{foreign_files, Entry, TakeCamera, TakeVideo, TAKE_DIRS};
+use pa_take::{file_stamp, foreign_files, Entry, TakeCamera, TakeVideo, TAKE_DIRS};
 use pa_video::source::{CameraSource, VideoSource};
-use pa_video::{Frame, Timestamp, VideoError};
+use pa_video::{Frame, Timestamp, VideoError, VideoReader};
 use std::collections::HashSet;
 
 /// The take's log ([`pa_take::read_log`]), its entries.
