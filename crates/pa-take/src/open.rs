@@ -133,3 +133,71 @@ pub(crate) fn first_files(files: &[String]) -> String {
     let more = if files.len() > 5 { ", ..." } else { "" };
     format!("{list}{more}")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(exposure: u32) -> TakeSettings {
+        TakeSettings {
+            exposure,
+            bit_depth: 8,
+            shot_hash: "0".into(),
+            key_name: "A".into(),
+            passes: PassSet::default(),
+            width: 4,
+            height: 4,
+            unit: "still",
+        }
+    }
+
+    #[test]
+    fn a_take_with_other_settings_or_unknown_files_is_refused_with_the_runs_messages() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let out = dir.path().join("take");
+        let mut said = Vec::new();
+        let Opened { mut take, lock } =
+            open_take(&out, settings(1), false, false, &mut |n| said.push(n)).expect("open");
+        assert!(out.join("frames").is_dir() && said.is_empty());
+        let mut e = take.new_entry(0, "a.png", (1, 2), 0);
+        e.output = Some("frames/000000.png".into());
+        take.entries.insert(0, e);
+        crate::write_log(&take.log_path, &take.entries).expect("log");
+        assert_eq!(
+            take.tally(1),
+            crate::Tally {
+                produced: 1,
+                skipped: 0,
+                past_end: 0
+            }
+        );
+        assert_eq!(take.tally(0).past_end, 1);
+        drop(lock);
+
+        let err = open_take(&out, settings(2), false, false, &mut |_| {}).expect_err("stale");
+        assert_eq!(
+            err.to_string(),
+            format!("{}: 1 frame(s) of this take were made with another exposure, bit depth or shot file; use a new --out folder, or --force to re-render them", out.display())
+        );
+        let err = open_take(&out, settings(2), true, true, &mut |_| {}).expect_err("live");
+        assert!(err.to_string().ends_with("use a new --out folder"), "{err}");
+        let opened = open_take(&out, settings(2), false, true, &mut |_| {}).expect("--force");
+        assert_eq!(opened.take.stale.len(), 1);
+        drop(opened);
+
+        for i in 1..8 {
+            std::fs::write(out.join("frames").join(crate::frame_name(i)), b"x").expect("write");
+        }
+        let err = open_take(&out, settings(1), false, false, &mut |_| {}).expect_err("foreign");
+        assert_eq!(
+            err.to_string(),
+            format!("{}: 7 file(s) this take's log does not know (frames/000001.png, frames/000002.png, frames/000003.png, frames/000004.png, frames/000005.png, ...): another take? Refusing to overwrite; use a new --out folder, or --force", out.display())
+        );
+        let mut said = Vec::new();
+        open_take(&out, settings(1), false, true, &mut |n| said.push(n)).expect("--force");
+        assert_eq!(
+            said,
+            [format!("warning: --force: 7 file(s) in {} are not from this take (frames/000001.png, frames/000002.png, frames/000003.png, frames/000004.png, frames/000005.png, ...); those a still maps to will be replaced", out.display())]
+        );
+    }
+}
