@@ -120,4 +120,68 @@ pub enum TakeError {
     /// A still's pose has scale or shear.
     #[error("still {index}: camera_from_marker is not a rigid transform")]
     PoseNotRigid { index: usize },
+    /// A still could not be read (a frame of the take is skipped with this message).
+    #[error(transparent)]
+    Still(pa_video::still::StillError),
+    /// A decoded frame does not hold `width x height` RGBA pixels.
+    #[error("the decoder returned a {width}x{height} frame with the wrong number of bytes")]
+    FrameBytes { width: u32, height: u32 },
+    /// A camera source gave something other than a captured frame (`desc`: the source).
+    #[error("{desc}: not a camera frame")]
+    NotCameraFrame { desc: String },
+    /// A captured frame does not hold `width x height` RGBA pixels (`desc`: the source).
+    #[error("{desc}: a {width}x{height} frame with the wrong number of bytes")]
+    CameraFrameBytes {
+        desc: String,
+        width: u32,
+        height: u32,
+    },
+    /// A line could not be appended to the log.
+    #[error("writing {}", path.display())]
+    AppendLog {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The log could not be flushed or synced.
+    #[error(transparent)]
+    SyncLog(std::io::Error),
+    /// A symbolic link in the take could not be removed before writing its file.
+    #[error("removing the link {}", path.display())]
+    RemoveLink {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// Frames of the take were made with other settings (`live`: a camera run, which cannot
+    /// re-render them).
+    #[error(
+        "{}: {frames} frame(s) of this take were made with another exposure, bit depth or shot file; use a new --out folder{}",
+        out.display(),
+        if *live { "" } else { ", or --force to re-render them" }
+    )]
+    StaleSettings {
+        out: PathBuf,
+        frames: usize,
+        live: bool,
+    },
+    /// Files in the take's output folders that its log does not know (without `--force`).
+    #[error(
+        "{}: {} file(s) this take's log does not know ({}): another take? Refusing to overwrite; use a new --out folder, or --force",
+        out.display(),
+        files.len(),
+        crate::open::first_files(files)
+    )]
+    ForeignFiles { out: PathBuf, files: Vec<String> },
+    /// No still of a folder is readable (`first_error`: why the first one is not).
+    #[error(
+        "{}: no readable still (tried {tried} file(s); the first: {})",
+        dir.display(),
+        first_error.as_ref().map_or_else(|| "none".to_string(), |e| e.to_string())
+    )]
+    NoReadableStill {
+        dir: PathBuf,
+        tried: usize,
+        first_error: Option<pa_video::still::StillError>,
+    },
 }

@@ -129,6 +129,29 @@ impl Take {
     }
 }
 
+/// What the log says of a take of `n` stills ([`Take::tally`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tally {
+    /// Stills `0..n` with a frame.
+    pub produced: usize,
+    /// Stills `0..n` logged as skipped.
+    pub skipped: usize,
+    /// Frames past the last still (stills removed since).
+    pub past_end: usize,
+}
+
+impl Take {
+    /// What the log says of stills `0..n`.
+    pub fn tally(&self, n: usize) -> Tally {
+        let count = |f: &dyn Fn(&Entry) -> bool| self.entries.values().filter(|e| f(e)).count();
+        Tally {
+            produced: count(&|e| e.index < n && e.output.is_some()),
+            skipped: count(&|e| e.index < n && e.skipped.is_some()),
+            past_end: count(&|e| e.index >= n && e.output.is_some()),
+        }
+    }
+}
+
 /// Files in the take's output folders that the log does not know, in natural order.
 pub fn foreign_files(take: &Take) -> Result<Vec<String>, TakeError> {
     let mut known: HashSet<String> = HashSet::new();
