@@ -40,8 +40,7 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pa_camera::{CameraModel, Intrinsics};
 use pa_overlay::detections::draw_frame;
-/// `run.rs` names the state through here (`super::track::state_name`).
-pub(crate) use pa_report::track::state_name;
+use pa_report::track::state_name;
 use pa_report::track::{frame_json, round};
 use pa_track::{Board, DetectorConfig, TagFamily, TrackState, TrackTarget, Tracker, TrackerConfig};
 use pa_video::source::{has_ext, Next, Pixels, Source, StillsSource, VideoSource};

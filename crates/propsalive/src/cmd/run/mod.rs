@@ -575,7 +575,8 @@ fn run_take(
             let t1 = Instant::now();
             files = take.encode_frame(i, &p.rgba8, &img, rgba.as_raw(), p.passes, &mut entry)?;
             let timings = p.timings;
-            entry.state = Some(super::track::state_name(state_of(p.pose.is_some())).to_string());
+            entry.state =
+                Some(pa_report::track::state_name(state_of(p.pose.is_some())).to_string());
             entry.camera_from_marker = p.pose.map(|m| m.to_cols_array().to_vec());
             entry.reprojection_px = p.reprojection_px;
             entry.timings_ms = Some(Timings {
