@@ -462,30 +462,15 @@ fn ctrl_c_finishes_the_current_frame_and_stops() {
 
 #[test]
 fn inputs_and_passes_parse() {
+    // What each input form parses to is pa_video::source's test (`inputs_parse`); here, that
+    // the binary's wrapper passes a folder through and names the flag in its errors.
     let dir = tempfile::tempdir().expect("tmp");
     assert_eq!(
         parse_input(dir.path()).expect("folder"),
         InputSpec::Folder(dir.path().to_path_buf())
     );
-    let video = dir.path().join("take.mp4");
-    std::fs::write(&video, b"x").expect("write");
-    assert_eq!(
-        parse_input(&video).expect("video"),
-        InputSpec::Video(video.clone())
-    );
-    assert_eq!(
-        parse_input(Path::new("camera:/dev/video2")).expect("camera"),
-        InputSpec::Camera("/dev/video2".into())
-    );
-    assert_eq!(
-        parse_input(Path::new("camera:1")).expect("camera"),
-        InputSpec::Camera("/dev/video1".into())
-    );
-    assert_eq!(
-        parse_input(Path::new("/dev/video3")).expect("camera"),
-        InputSpec::Camera("/dev/video3".into())
-    );
     let err = parse_input(&dir.path().join("nope.mp4")).expect_err("missing");
+    assert!(err.to_string().starts_with("--input "), "{err}");
     assert!(err.to_string().contains("no such file"), "{err}");
     let p = PassSet::parse(&["plate".into(), "masks".into()]).expect("passes");
     assert_eq!(p.dirs(), ["plate", "masks"]);
