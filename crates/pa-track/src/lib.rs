@@ -5,7 +5,9 @@
 //! solve the camera pose `camera_from_marker` (IPPE, both planar solutions, refined by
 //! Levenberg-Marquardt on the reprojection error through the full [`pa_camera::CameraModel`]);
 //! [`Tracker`] runs the state machine (Searching -> Detected -> Tracked -> Lost) with
-//! hysteresis, One Euro filtering and region-of-interest search.
+//! hysteresis, pose filtering weighted by the measured noise (a constant-velocity Kalman
+//! filter, [`PoseFilter`]) and region-of-interest search. [`Board::estimate_pose`] rejects tags
+//! whose corners disagree with the rest (a tag partly hidden by the prop) before its final fit.
 //!
 //! # Detection modes and recall
 //!
@@ -61,7 +63,9 @@ pub use board::Board;
 pub use detect::{Detection, Detector, DetectorConfig, GrayImage, TagFamily};
 pub use filter::{OneEuro, PoseFilter, PoseFilterConfig};
 pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
-pub use pose::{estimate_tag_pose, tag_object_points, Pose, PoseCandidate, PoseEstimate};
+pub use pose::{
+    estimate_tag_pose, pose_noise, tag_object_points, Pose, PoseCandidate, PoseEstimate, PoseNoise,
+};
 pub use tracker::{TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig};
 
 /// Errors of the tracker. A frame without tags is not an error.

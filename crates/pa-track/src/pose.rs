@@ -243,6 +243,72 @@ pub fn rms_error(
     (sum / object_points.len().max(1) as f64).sqrt()
 }
 
+/// The measured noise of one pose fit: per-axis variances of the rotation (radians squared,
+/// a left perturbation `R <- exp(w) R` in the camera frame, as [`refine_lm`] and
+/// [`crate::PoseFilter`] use) and of the translation (metres squared), each the mean of its
+/// three axes. First-order: `s^2 (J^T J)^-1` at the fitted pose, `J` the pinhole
+/// reprojection Jacobian in (undistorted) pixels and `s^2 = RSS / (2N - 6)` the residual
+/// variance per coordinate of this fit's own `N` corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseNoise {
+    pub rotation_var_rad2: f64,
+    pub translation_var_m2: f64,
+}
+
+/// [`PoseNoise`] of `pose` fitted to these correspondences; `None` when the Jacobian is
+/// singular, a point is behind the camera or fewer than 4 points are given.
+pub fn pose_noise(
+    camera: &CameraModel,
+    pose: &Pose,
+    object_points: &[DVec3],
+    image_px: &[DVec2],
+) -> Option<PoseNoise> {
+    let n = object_points.len();
+    if n < 4 || image_px.len() != n {
+        return None;
+    }
+    let k = &camera.intrinsics;
+    let f = DVec2::new(k.fx, k.fy);
+    let r = DMat3::from_quat(pose.rotation);
+    let mut jtj = [[0.0f64; 6]; 6];
+    let mut rss = 0.0;
+    for (p, px) in object_points.iter().zip(image_px) {
+        let m = camera.ray_from_pixel(*px).truncate();
+        let rp = r * *p;
+        let pc = rp + pose.translation;
+        if pc.z <= 1e-12 {
+            return None;
+        }
+        let iz = 1.0 / pc.z;
+        rss += (f * (DVec2::new(pc.x * iz, pc.y * iz) - m)).length_squared();
+        let du = DVec3::new(f.x * iz, 0.0, -f.x * pc.x * iz * iz);
+        let dv = DVec3::new(0.0, f.y * iz, -f.y * pc.y * iz * iz);
+        let s = skew(rp);
+        for d in [du, dv] {
+            let jw = -(s.transpose() * d);
+            let row = [jw.x, jw.y, jw.z, d.x, d.y, d.z];
+            for i in 0..6 {
+                for j in 0..6 {
+                    jtj[i][j] += row[i] * row[j];
+                }
+            }
+        }
+    }
+    let s2 = rss / (2 * n - 6).max(1) as f64;
+    let mut diag = [0.0f64; 6];
+    for (i, d) in diag.iter_mut().enumerate() {
+        let mut e = [0.0; 6];
+        e[i] = 1.0;
+        *d = solve::<6>(jtj, e)?[i];
+    }
+    let rot = s2 * (diag[0] + diag[1] + diag[2]) / 3.0;
+    let tr = s2 * (diag[3] + diag[4] + diag[5]) / 3.0;
+    (rot.is_finite() && tr.is_finite() && rot >= 0.0 && tr >= 0.0).then_some(PoseNoise {
+        rotation_var_rad2: rot,
+        translation_var_m2: tr,
+    })
+}
+
 /// Homography (row-major 3x3, h22 = 1) mapping `src` to `dst`, Hartley-normalised DLT solved
 /// by least squares.
 pub(crate) fn homography(src: &[DVec2], dst: &[DVec2]) -> Option<[[f64; 3]; 3]> {

@@ -1,5 +1,7 @@
 //! Tracking over time: an explicit state machine with hysteresis, events, pose filtering and
-//! region-of-interest search.
+//! region-of-interest search. Each frame's board pose rejects tags that disagree with the
+//! rest (the filter's prediction decides between two); the filter weighs each pose by the
+//! noise its fit measured ([`crate::pose::pose_noise`]).
 //!
 //! ```text
 //!  Searching --seen--> Detected --seen N frames--> Tracked <------------------+
@@ -234,8 +236,13 @@ impl Tracker {
         detections: Vec<Detection>,
         time_s: f64,
     ) -> Result<TrackOutput, TrackError> {
+        // The pose expected on this frame decides between two disagreeing tags.
+        let prior = self.filter.predict(time_s).or(self.last_pose);
         let board_pose: Option<BoardPose> =
-            match self.board.estimate_pose(&self.camera, &detections) {
+            match self
+                .board
+                .estimate_pose_robust(&self.camera, &detections, prior.as_ref())
+            {
                 Ok(p) => p,
                 // Degenerate corners (e.g. a sliver of a tag): treat as not seen.
                 Err(TrackError::Pose(_)) => None,
@@ -285,7 +292,10 @@ impl Tracker {
                 }
             }
             self.last_pose = Some(cand.pose);
-            self.last_filtered = Some(self.filter.filter(cand.pose, time_s));
+            let (obj, img): (Vec<glam::DVec3>, Vec<DVec2>) =
+                bp.correspondences.iter().copied().unzip();
+            let noise = crate::pose::pose_noise(&self.camera, &cand.pose, &obj, &img);
+            self.last_filtered = Some(self.filter.filter_measured(cand.pose, noise, time_s));
             self.roi = Some(self.target_box(&cand.pose, &bp.correspondences));
         } else {
             self.seen = 0;
