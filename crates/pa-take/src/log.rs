@@ -24,6 +24,11 @@ pub struct Entry {
     pub camera_from_marker: Option<Vec<f32>>,
     #[serde(default)]
     pub reprojection_px: Option<f64>,
+    /// Ids of the board's tags the pose used, as `propsalive track` logs them (tags that
+    /// disagreed with the rest and were rejected are not in it; empty when none was seen).
+    /// Absent for a skipped still and in logs written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub used_ids: Option<Vec<u32>>,
     #[serde(default)]
     pub timings_ms: Option<Timings>,
     #[serde(default)]
@@ -277,6 +282,7 @@ mod tests {
             state: None,
             camera_from_marker: None,
             reprojection_px: None,
+            used_ids: (index == 1).then(|| vec![4, 0, 2]),
             timings_ms: None,
             output: None,
             skipped: None,
@@ -305,6 +311,14 @@ mod tests {
         let log = read_log(&path).expect("read");
         assert_eq!(log.entries.keys().copied().collect::<Vec<_>>(), [0, 1, 2]);
         assert_eq!(log.entries[&1], redone);
+        // used_ids round-trips in the tracker's order, and is left out when unknown (a log
+        // written before the field reads back as None).
+        assert_eq!(log.entries[&1].used_ids.as_deref(), Some(&[4, 0, 2][..]));
+        assert!(text.contains(r#""used_ids":[4,0,2]"#));
+        assert_eq!(log.entries[&0].used_ids, None);
+        assert!(!serde_json::to_string(&entry(0))
+            .expect("json")
+            .contains("used_ids"));
         assert_eq!(log.notes.len(), 2);
         assert!(
             log.notes[0].to_string().starts_with(&format!(

@@ -117,6 +117,7 @@ impl Take {
             state: None,
             camera_from_marker: None,
             reprojection_px: None,
+            used_ids: None,
             timings_ms: None,
             output: None,
             skipped: None,

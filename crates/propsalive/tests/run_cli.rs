@@ -64,6 +64,9 @@ fn uninterrupted_take_is_complete_and_tracked() {
             v["camera_from_marker"].as_array().map(|a| a.len()),
             Some(16)
         );
+        // The board's tags the pose used, as `track` logs them.
+        let used = v["used_ids"].as_array().expect("used_ids");
+        assert!(!used.is_empty() && used.iter().all(|id| id.as_u64().is_some()));
     }
     // A tracked frame is not the untouched still (the prop was replaced by the twin).
     let (i, _) = l
@@ -159,6 +162,7 @@ fn killed_take_resumes_identical_to_uninterrupted() {
             "state",
             "camera_from_marker",
             "reprojection_px",
+            "used_ids",
             "output",
         ] {
             assert_eq!(v[k], ref_log[i][k], "index {i}, {k}");

@@ -271,6 +271,8 @@ struct Processed {
     pub rgba8: Vec<u8>,
     pub pose: Option<glam::Mat4>,
     pub reprojection_px: Option<f64>,
+    /// The board's tags the pose used (empty when none was seen); `None` from a fake.
+    pub used_ids: Option<Vec<u32>>,
     pub timings: StageTimings,
     /// With passes asked for and a pose; `None` otherwise.
     pub passes: Option<FramePasses>,
@@ -360,6 +362,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
                     rgba8: f.rgba8,
                     pose,
                     reprojection_px: None,
+                    used_ids: None,
                     timings: f.timings,
                     passes,
                 }
@@ -369,12 +372,14 @@ impl FrameProcessor for PipelineProcessor<'_> {
                 rgba8: rgba8.to_vec(),
                 pose: None,
                 reprojection_px: None,
+                used_ids: None,
                 timings: StageTimings::default(),
                 passes: None,
             },
         };
         processed.timings.track_ms = track_ms;
         processed.reprojection_px = out.raw.map(|r| r.rms_px);
+        processed.used_ids = Some(out.used_ids.clone());
         Ok(processed)
     }
 }
@@ -579,6 +584,7 @@ fn run_take(
                 Some(pa_report::track::state_name(state_of(p.pose.is_some())).to_string());
             entry.camera_from_marker = p.pose.map(|m| m.to_cols_array().to_vec());
             entry.reprojection_px = p.reprojection_px;
+            entry.used_ids = p.used_ids;
             entry.timings_ms = Some(Timings {
                 track: timings.track_ms,
                 animate: timings.animate_ms,

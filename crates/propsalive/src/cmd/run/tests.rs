@@ -188,6 +188,7 @@ impl FrameProcessor for FakeProcessor {
                 1.0,
             ))),
             reprojection_px: Some(0.1),
+            used_ids: Some(vec![anim_frame, 7]),
             timings: StageTimings::default(),
             passes: Some(FramePasses {
                 plate_rgba8: out,
