@@ -252,7 +252,11 @@ impl MethodRow {
 pub fn methods_chart(rows: &[MethodRow]) -> BarChart {
     let mut names: Vec<&str> = Vec::new();
     let mut backgrounds: Vec<&str> = Vec::new();
-    for r in rows {
+    // Rows without PSNR (the tracking rows) are not charted.
+    for r in rows
+        .iter()
+        .filter(|r| r.prop_psnr_db.is_some() || r.revealed_psnr_db.is_some())
+    {
         if !names.contains(&r.method.as_str()) {
             names.push(&r.method);
         }

@@ -12,6 +12,7 @@ pub mod eval;
 pub mod methods;
 pub mod prop;
 pub mod scene;
+pub mod tracking;
 
 pub use error::SceneError;
 pub use prop::{prop_glb, prop_model, PropSpec};

@@ -243,16 +243,42 @@ pub fn rms_error(
     (sum / object_points.len().max(1) as f64).sqrt()
 }
 
-/// The measured noise of one pose fit: per-axis variances of the rotation (radians squared,
-/// a left perturbation `R <- exp(w) R` in the camera frame, as [`refine_lm`] and
-/// [`crate::PoseFilter`] use) and of the translation (metres squared), each the mean of its
-/// three axes. First-order: `s^2 (J^T J)^-1` at the fitted pose, `J` the pinhole
-/// reprojection Jacobian in (undistorted) pixels and `s^2 = RSS / (2N - 6)` the residual
-/// variance per coordinate of this fit's own `N` corners.
+/// The measured noise of one pose fit, first-order: `s^2 (J^T J)^-1` at the fitted pose,
+/// `J` the pinhole reprojection Jacobian in (undistorted) pixels. Kept in two factors: the
+/// geometry (`(J^T J)^-1`'s diagonal: how much one pixel of corner noise moves each axis,
+/// which grows as tags are hidden or small) and this fit's residual variance `s^2 =
+/// RSS / (2N - 6)` per coordinate, which [`crate::PoseFilter`] averages over frames (a few
+/// corners give a poor `s^2` alone). Rotation axes are a left perturbation `R <- exp(w) R`
+/// in the camera frame, as [`crate::PoseFilter`] uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseNoise {
-    pub rotation_var_rad2: f64,
-    pub translation_var_m2: f64,
+    /// Variance of each rotation axis per px^2 of corner noise (rad^2 / px^2).
+    pub rotation_var: DVec3,
+    /// Variance of each translation axis per px^2 of corner noise (m^2 / px^2).
+    pub translation_var: DVec3,
+    /// The fit's residual variance per coordinate, px^2.
+    pub residual_var_px2: f64,
+}
+
+impl PoseNoise {
+    /// Noise of `sigma_rad` per rotation axis and `sigma_m` per translation axis (a unit
+    /// residual variance).
+    pub fn isotropic(sigma_rad: f64, sigma_m: f64) -> Self {
+        Self {
+            rotation_var: DVec3::splat(sigma_rad * sigma_rad),
+            translation_var: DVec3::splat(sigma_m * sigma_m),
+            residual_var_px2: 1.0,
+        }
+    }
+
+    /// Whether every value is finite and not negative.
+    pub fn is_valid(&self) -> bool {
+        let ok = |v: DVec3| v.is_finite() && v.min_element() >= 0.0;
+        ok(self.rotation_var)
+            && ok(self.translation_var)
+            && self.residual_var_px2.is_finite()
+            && self.residual_var_px2 >= 0.0
+    }
 }
 
 /// [`PoseNoise`] of `pose` fitted to these correspondences; `None` when the Jacobian is
@@ -287,26 +313,25 @@ pub fn pose_noise(
         for d in [du, dv] {
             let jw = -(s.transpose() * d);
             let row = [jw.x, jw.y, jw.z, d.x, d.y, d.z];
-            for i in 0..6 {
-                for j in 0..6 {
-                    jtj[i][j] += row[i] * row[j];
+            for (i, ri) in row.iter().enumerate() {
+                for (j, rj) in row.iter().enumerate() {
+                    jtj[i][j] += ri * rj;
                 }
             }
         }
     }
-    let s2 = rss / (2 * n - 6).max(1) as f64;
     let mut diag = [0.0f64; 6];
     for (i, d) in diag.iter_mut().enumerate() {
         let mut e = [0.0; 6];
         e[i] = 1.0;
         *d = solve::<6>(jtj, e)?[i];
     }
-    let rot = s2 * (diag[0] + diag[1] + diag[2]) / 3.0;
-    let tr = s2 * (diag[3] + diag[4] + diag[5]) / 3.0;
-    (rot.is_finite() && tr.is_finite() && rot >= 0.0 && tr >= 0.0).then_some(PoseNoise {
-        rotation_var_rad2: rot,
-        translation_var_m2: tr,
-    })
+    let noise = PoseNoise {
+        rotation_var: DVec3::new(diag[0], diag[1], diag[2]),
+        translation_var: DVec3::new(diag[3], diag[4], diag[5]),
+        residual_var_px2: rss / (2 * n - 6).max(1) as f64,
+    };
+    noise.is_valid().then_some(noise)
 }
 
 /// Homography (row-major 3x3, h22 = 1) mapping `src` to `dst`, Hartley-normalised DLT solved

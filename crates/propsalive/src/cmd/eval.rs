@@ -1,5 +1,7 @@
 //! `propsalive eval`: our methods against the paper's on generated scenes with ground truth,
-//! and the degradation curve (quality against the in-between's distance from its key pose).
+//! and the degradation curve (quality against the in-between's distance from its key pose),
+//! and the tracker alone (`tracking per still` / `tracking video filter` rows: median
+//! rotation error on clean frames and on frames with sensor noise and blur).
 //!
 //! Runs every method on every background and seed, then hands the numbers to
 //! [`pa_report::eval`], which writes `report.md`, `results.json` and three SVG plots linked
@@ -14,6 +16,7 @@ use pa_report::stats::{mean, median};
 use pa_scene::eval::run_scene;
 use pa_scene::methods::methods;
 use pa_scene::scene::Background;
+use pa_scene::tracking::{tracking_errors, SensorNoise, TrackingErrors};
 use pa_scene::SceneSpec;
 
 #[derive(clap::Args)]
@@ -110,6 +113,55 @@ pub fn run(args: Args) -> Result<()> {
                 curves.push(Curve {
                     name: m.name.to_string(),
                     points,
+                });
+            }
+        }
+    }
+
+    // Tracking rows: the tracker alone, per still and in video mode (the pose filter), on
+    // every frame of the clip (a video: consecutive frames), clean and with sensor noise.
+    let noises = [None, Some(SensorNoise::HANDHELD)];
+    for background in [Background::Wood, Background::Plain] {
+        let mut acc: Vec<TrackingErrors> = vec![TrackingErrors::default(); noises.len()];
+        for &seed in &args.seeds {
+            let spec = SceneSpec {
+                seed,
+                width: w,
+                height: h,
+                background,
+                ..SceneSpec::default()
+            };
+            errln!("{background:?} seed {seed}: tracking per still and with the video filter");
+            let r = tracking_errors(&mut renderer, spec, 0..49, &noises)?;
+            for (a, e) in acc.iter_mut().zip(r) {
+                // Frames 0..3: the video tracker locks on.
+                let skip = |v: Vec<Option<f64>>| v.into_iter().skip(3);
+                a.per_still_rot_deg.extend(skip(e.per_still_rot_deg));
+                a.video_rot_deg.extend(skip(e.video_rot_deg));
+            }
+        }
+        for (noise, a) in noises.iter().zip(acc) {
+            let frames_name = match noise {
+                None => "clean frames".to_string(),
+                Some(n) => format!(
+                    "noisy frames (noise {} levels, blur {}x)",
+                    n.sigma, n.blur_passes
+                ),
+            };
+            for (mode, v) in [
+                ("per still", &a.per_still_rot_deg),
+                ("video filter", &a.video_rot_deg),
+            ] {
+                rows.push(MethodRow {
+                    background: format!("{background:?}"),
+                    method: format!("tracking {mode}, {frames_name}"),
+                    prop_psnr_db: None,
+                    prop_ssim: None,
+                    revealed_psnr_db: None,
+                    revealed_ssim: None,
+                    rot_err_deg_median: median(v.iter().copied()),
+                    texture_diminish_ms_median: None,
+                    frames: v.iter().flatten().count(),
                 });
             }
         }
