@@ -1,13 +1,20 @@
-//! Pose filtering for video. [`PoseFilter`] is a constant-velocity Kalman filter whose
-//! measurement noise is the one each frame's pose fit measured ([`crate::pose::PoseNoise`]):
-//! a sharp frame (small corner residuals) is followed almost exactly, so a clean moving
-//! camera is not lagged; a noisy one is smoothed, and the velocity term keeps a steady move
-//! from lagging either. When a measurement moves further from the prediction than the
-//! predicted and measured noise explain (an innovation beyond `gate_sigma`), the filter's
-//! uncertainty is inflated by that ratio, so it follows a sudden move at once.
-//! Rotation is filtered in the tangent space at the prediction (`q <- exp(k y) q_pred` with
-//! `y = log(q_meas q_pred^-1)`, camera frame), so there is no sign or normalisation problem.
-//! [`OneEuro`] (Casiez et al., CHI 2012) remains as a scalar filter.
+//! Pose filtering for video. [`PoseFilter`] is a constant-velocity Kalman filter, one per
+//! axis of rotation (a camera-frame scaled axis) and translation, whose measurement noise is
+//! the one each frame's pose fit measured ([`crate::pose::PoseNoise`]: this frame's geometry,
+//! which grows when tags are hidden, times the running mean of the fits' residual
+//! variance). A frame that pins the pose well is followed closely; a poorly pinned one leans
+//! on the prediction. The process noise (how much the camera may accelerate) adapts to the
+//! innovations: it grows when they are larger than predicted or correlated from frame to
+//! frame (the filter lags a move or a shifting bias), and shrinks when they are small or
+//! alternate (it would follow jitter), so a clean moving camera is not lagged and a still
+//! one is smoothed. An innovation beyond `gate_sigma` inflates the uncertainty by that ratio,
+//! so a sudden move is followed at once. Rotation is filtered in the tangent space at the
+//! prediction (`q <- exp(k y) q_pred`, `y = log(q_meas q_pred^-1)`), so there is no sign or
+//! normalisation problem. [`OneEuro`] (Casiez et al., CHI 2012) remains as a scalar filter.
+//!
+//! Measured (`propsalive eval`'s tracking rows; `tests/tracking_filter.rs` in pa-scene):
+//! on clean generated frames the filtered rotation error is no worse than per still, on
+//! frames with sensor noise and blur it is lower.
 
 use glam::{DQuat, DVec3};
 
@@ -83,8 +90,8 @@ pub struct PoseFilterConfig {
     /// Weight of a new frame in the running means of the innovations' autocorrelation that
     /// adapts the process noise to the motion (0: no adaptation).
     pub motion_smoothing: f64,
-    /// Exponent of the adaptation per unit of autocorrelation (per frame, at most one
-    /// step of x1.25).
+    /// Exponent of the adaptation per unit of lag-1 autocorrelation (the total per frame
+    /// is at most one `motion_step`).
     pub motion_gain: f64,
     /// Largest change of the process-noise factor per frame (a factor > 1).
     pub motion_step: f64,

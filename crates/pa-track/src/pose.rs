@@ -721,6 +721,62 @@ mod tests {
     }
 
     #[test]
+    fn pose_noise_predicts_the_scatter_of_noisy_fits() {
+        // Independent truth: the empirical variance of 400 fits of a 2x2 board whose corners
+        // carry Gaussian noise of 0.5 px, against pose_noise's first-order prediction.
+        let cam = camera(true);
+        let truth = look_pose(35.0, 20.0, 0.7, DVec3::new(0.02, -0.01, 0.0));
+        let mut obj = Vec::new();
+        for (cx, cy) in [(-0.04, -0.04), (0.04, -0.04), (-0.04, 0.04), (0.04, 0.04)] {
+            obj.extend(tag_object_points(0.06).map(|p| p + DVec3::new(cx, cy, 0.0)));
+        }
+        let exact = project(&cam, &truth, &obj);
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut gauss = || {
+            let mut u = || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let sigma = 0.5;
+        let (mut emp_r, mut emp_t) = (DVec3::ZERO, DVec3::ZERO);
+        let (mut pred_r, mut pred_t) = (DVec3::ZERO, DVec3::ZERO);
+        let n = 400;
+        for _ in 0..n {
+            let img: Vec<DVec2> = exact
+                .iter()
+                .map(|p| *p + DVec2::new(gauss(), gauss()) * sigma)
+                .collect();
+            let est = estimate_planar_pose(&cam, &obj, &img)
+                .expect("fit")
+                .best
+                .pose;
+            let w = (est.rotation * truth.rotation.conjugate()).to_scaled_axis();
+            let d = est.translation - truth.translation;
+            emp_r += w * w;
+            emp_t += d * d;
+            let noise = pose_noise(&cam, &est, &obj, &img).expect("noise");
+            pred_r += noise.rotation_var * noise.residual_var_px2;
+            pred_t += noise.translation_var * noise.residual_var_px2;
+        }
+        for (e, p) in [(emp_r, pred_r), (emp_t, pred_t)] {
+            let ratio = e / p;
+            eprintln!("empirical / predicted variance per axis: {ratio:.3?}");
+            // Within 25 % per axis (400 samples: the variance itself scatters ~7 %).
+            assert!(
+                ratio.min_element() > 0.75 && ratio.max_element() < 1.25,
+                "empirical / predicted variance {ratio:?}"
+            );
+        }
+        // A singular configuration (all points the same) gives no noise estimate.
+        assert!(pose_noise(&cam, &truth, &[DVec3::ZERO; 4], &[exact[0]; 4]).is_none());
+    }
+
+    #[test]
     fn pose_algebra() {
         let a = look_pose(20.0, 30.0, 1.0, DVec3::new(0.1, 0.2, 0.0));
         let p = DVec3::new(0.3, -0.2, 0.1);
