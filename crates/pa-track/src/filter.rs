@@ -5,9 +5,10 @@
 //! variance). A frame that pins the pose well is followed closely; a poorly pinned one leans
 //! on the prediction. The process noise (how much the camera may accelerate) adapts to the
 //! innovations: it grows when they are larger than predicted or correlated from frame to
-//! frame (the filter lags a move or a shifting bias), and shrinks when they are small or
-//! alternate (it would follow jitter), so a clean moving camera is not lagged and a still
-//! one is smoothed. An innovation beyond `gate_sigma` inflates the uncertainty by that ratio,
+//! frame (the filter lags a move or a shifting bias), and shrinks back when they are small
+//! or alternate, never below the configured one (`motion_scale_min` = 1: letting it shrink
+//! smoothed a still camera more but lagged the clean moving one by 15-20 % of its error at
+//! 960x540). An innovation beyond `gate_sigma` inflates the uncertainty by that ratio,
 //! so a sudden move is followed at once. Rotation is filtered in the tangent space at the
 //! prediction (`q <- exp(k y) q_pred`, `y = log(q_meas q_pred^-1)`), so there is no sign or
 //! normalisation problem. [`OneEuro`] (Casiez et al., CHI 2012) remains as a scalar filter.
@@ -116,7 +117,7 @@ impl Default for PoseFilterConfig {
             motion_smoothing: 0.1,
             motion_gain: 3.0,
             motion_step: 1.25,
-            motion_scale_min: 0.1,
+            motion_scale_min: 1.0,
             motion_scale_max: 16.0,
             initial_angular_speed_rad_s: 1.0,
             initial_speed_m_s: 0.5,
@@ -457,13 +458,15 @@ mod tests {
         for seed in [1, 2, 3] {
             let [raw_r, filt_r, raw_t, filt_t] = run(0.15, 1.0, 120, seed);
             eprintln!("noisy seed {seed}: rot {raw_r:.4} -> {filt_r:.4} deg, trans {raw_t:.3} -> {filt_t:.3} mm");
-            // Measured: 0.91x (the shake itself is motion a causal filter cannot average).
+            // Measured: rotation 0.91-0.93x, translation 0.95-0.97x (the shake itself is
+            // motion a causal filter cannot average, and the process noise never drops below
+            // the configured one, so that a clean moving camera is never lagged).
             assert!(
                 filt_r < 0.95 * raw_r,
                 "rotation: filtered {filt_r} deg vs raw {raw_r}"
             );
             assert!(
-                filt_t < 0.95 * raw_t,
+                filt_t < 0.98 * raw_t,
                 "translation: filtered {filt_t} mm vs raw {raw_t}"
             );
         }
@@ -493,9 +496,8 @@ mod tests {
             }
         }
         eprintln!("still: rot {raw:.4} -> {filt:.4}");
-        // A still camera: the filter learns there is little motion (down to a tenth of the
-        // configured process noise); measured 0.76x.
-        assert!(filt < 0.85 * raw, "filtered {filt} vs raw {raw}");
+        // A still camera: measured 0.88x (the process noise stays at the configured one).
+        assert!(filt < 0.92 * raw, "filtered {filt} vs raw {raw}");
         // A sudden 10 degree, 50 mm move (the camera picked up): followed at once.
         let moved = Pose {
             rotation: DQuat::from_rotation_y(10f64.to_radians()) * truth.rotation,
