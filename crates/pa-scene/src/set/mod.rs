@@ -101,8 +101,24 @@ pub fn measure_set_frame(
     }
 }
 
-/// Builds the pipeline for a set: the real tracker on the set's board, the set's model and
-/// placement, and its clean plate where it has one.
+/// The tracker for a set's frames: stills of a stop-motion take (the camera jumps between
+/// them), tracked as `propsalive run` tracks stills (`pa_video::source`'s policy): each frame
+/// alone, the first detection trusted, no region of interest, no pose filter.
+pub fn stills_tracker_config() -> TrackerConfig {
+    TrackerConfig {
+        frames_to_track: 1,
+        use_roi: false,
+        filter: pa_track::PoseFilterConfig {
+            enabled: false,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// Builds the pipeline for a set: the real tracker on the set's board (the stills policy,
+/// [`stills_tracker_config`]), the set's model and placement, and its clean plate where it
+/// has one.
 pub fn pipeline_for_set(
     set: &SetManifest,
     renderer: &mut Renderer,
@@ -113,7 +129,7 @@ pub fn pipeline_for_set(
         camera,
         TrackTarget::Board(set.board.clone()),
         DetectorConfig::default(),
-        TrackerConfig::default(),
+        stills_tracker_config(),
     )?;
     let mut p = ArPipeline::new(
         renderer,
@@ -132,8 +148,9 @@ pub fn pipeline_for_set(
     Ok(p)
 }
 
-/// Runs `settings` over every frame of a set, in order (one sequence: the tracker is kept
-/// from frame to frame); `each` sees every (frame, images, output, metrics).
+/// Runs `settings` over every frame of a set, in order, each frame tracked alone (the tracker
+/// is reset before each, as for stills); the flicker metric compares consecutive frames.
+/// `each` sees every (frame, images, output, metrics).
 pub fn run_set<E: From<SceneError>>(
     renderer: &mut Renderer,
     set: &SetManifest,
@@ -145,6 +162,7 @@ pub fn run_set<E: From<SceneError>>(
     let mut all = Vec::new();
     for f in &set.frames {
         let img = read_frame(set, f)?;
+        pipeline.reset_tracker();
         let out = pipeline
             .process(
                 renderer,
