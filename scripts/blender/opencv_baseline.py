@@ -7,9 +7,10 @@ For every frame: the fill mask is the set's key-prop mask dilated by a disc of `
 pixels (our pipeline's default dilation; note: the baseline gets the *true* key mask, ours
 the tracked twin's), filled with cv2.inpaint (Telea, Navier-Stokes). Measured as `eval
 --set` measures: PSNR over the revealed region (key mask and not in-between mask) against
-the in-between render, and flicker: the mean absolute frame-to-frame change (8-bit levels,
-mean of R, G, B) of the revealed region after the table-plane homography of the true cameras,
-over pixels revealed in both frames, for the fill and for the ground truth.
+the in-between render, and flicker as `pa_scene::flicker` measures it: the mean absolute
+frame-to-frame change (8-bit levels, mean of R, G, B) after the table-plane homography of the
+true cameras, over pixels revealed in both frames, at least 2 pixels from the in-between's
+silhouette and seeing the table (`table_m`), for the fill and for the ground truth.
 Needs numpy and opencv-python-headless (not part of the product's build).
 """
 
@@ -65,6 +66,16 @@ def change(prev, cur, k, cam_prev, cam_cur, r_prev, r_cur):
     return float(np.mean(np.abs(cur[ys, xs].astype(np.float64) - s)))
 
 
+def on_table(region, k, cam, half):
+    """`region` less the pixels whose ray misses the table square of half-side `half`."""
+    h, w = region.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    q = np.linalg.inv(plane(cam)) @ np.linalg.inv(k) @ np.stack([xs.ravel(), ys.ravel(), np.ones(h * w)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = (q[2] > 1e-12) & (np.abs(q[0] / q[2]) <= half) & (np.abs(q[1] / q[2]) <= half)
+    return region & ok.reshape(h, w)
+
+
 def run(set_dir, dilate, radius):
     with open(os.path.join(set_dir, "manifest.json")) as f:
         m = json.load(f)
@@ -83,17 +94,21 @@ def run(set_dir, dilate, radius):
             out = cv2.inpaint(inp, fill, radius, flag)
             ms.append(1000 * (time.perf_counter() - t0))
             revealed = key & ~tm
+            near = cv2.dilate(tm.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+            region = key & ~near
+            if m.get("table_m"):
+                region = on_table(region, K, fr["camera_from_marker"], 0.5 * m["table_m"])
             p = psnr(out, truth, revealed)
             if p is not None:
                 ps.append(p)
             cam = fr["camera_from_marker"]
             if prev is not None:
-                a = change(prev[0], out, K, prev[2], cam, prev[3], revealed)
-                b = change(prev[1], truth, K, prev[2], cam, prev[3], revealed)
+                a = change(prev[0], out, K, prev[2], cam, prev[3], region)
+                b = change(prev[1], truth, K, prev[2], cam, prev[3], region)
                 if a is not None and b is not None:
                     fl.append(a)
                     ft.append(b)
-            prev = (out, truth, cam, revealed)
+            prev = (out, truth, cam, region)
         res[name] = {
             "revealed_psnr_db": float(np.mean(ps)) if ps else None,
             "flicker_ours": float(np.mean(fl)) if fl else None,

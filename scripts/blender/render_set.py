@@ -41,6 +41,7 @@ F = B.copy()
 # The glTF importer turns glTF's +Y up into Blender's +Z up: blender = (x, -z, y).
 BLENDER_FROM_GLTF = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))
 PROP_INDEX = 1
+TABLE_M = 1.6
 
 
 def args():
@@ -161,7 +162,7 @@ def build_set(kit, kit_dir, o):
     bg.inputs["Strength"].default_value = 0.45
     sc.world = world
 
-    plane("table", 1.6, -0.0005, wood_material())
+    plane("table", TABLE_M, -0.0005, wood_material())
     sheet = kit.get("board_sheet_m", 0.26)
     plane("board", sheet, 0.0, board_material(os.path.join(kit_dir, kit["board_png"])))
 
@@ -330,7 +331,8 @@ def main():
             "width": kit["width"], "height": kit["height"], "intrinsics": k,
             "model": model, "animation": kit.get("animation", 0),
             "marker_from_prop": kit["marker_from_prop"], "board": kit["board"],
-            "plate": plate, "frames": [by_index[j] for j in sorted(by_index)],
+            "plate": plate, "table_m": TABLE_M,
+            "frames": [by_index[j] for j in sorted(by_index)],
         }
         with open(manifest_path + ".tmp", "w") as f:
             json.dump(manifest, f, indent=1)

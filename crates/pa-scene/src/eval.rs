@@ -19,7 +19,7 @@ use pa_pipeline::metrics::{psnr_region, ssim_region};
 use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
-use crate::flicker::Flicker;
+use crate::flicker::{flicker_region, Flicker, EDGE_MARGIN_PX};
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
 use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
 use crate::SceneError;
@@ -112,7 +112,8 @@ pub fn measure(
     Ok(measure_revealed(scene, renderer, frame, out)?.0)
 }
 
-/// [`measure`], and the revealed region it measured.
+/// [`measure`], and the region the flicker metric follows (the revealed region away from the
+/// in-between's edge, [`flicker_region`]).
 fn measure_revealed(
     scene: &Scene,
     renderer: &mut Renderer,
@@ -154,7 +155,8 @@ fn measure_revealed(
         key_mask_iou: None,
         twin_mask_iou: None,
     };
-    Ok((m, revealed))
+    let region = flicker_region(&key_mask, &truth_mask, w, EDGE_MARGIN_PX);
+    Ok((m, region))
 }
 
 /// Builds the frame pipeline for a scene: the real tracker on the scene's board.
@@ -198,7 +200,8 @@ pub fn run_scene<E: From<SceneError>>(
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
     let mut all = Vec::new();
-    let mut flicker = Flicker::new(scene.intrinsics);
+    let mut flicker =
+        Flicker::new(scene.intrinsics).with_plane_extent(f64::from(crate::scene::TABLE_M) * 0.5);
     for i in frames {
         let f = scene.frame(renderer, i).map_err(SceneError::from)?;
         let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
@@ -215,11 +218,11 @@ pub fn run_scene<E: From<SceneError>>(
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;
-        let (mut m, revealed) = measure_revealed(&scene, renderer, &f, &out)?;
+        let (mut m, region) = measure_revealed(&scene, renderer, &f, &out)?;
         m.flicker = flicker.step(
             &out.rgba8,
             &f.ground_truth.rgba8,
-            &revealed,
+            &region,
             f.camera_from_marker,
         );
         each(&f, &out, &m)?;

@@ -6,7 +6,10 @@
 //! the table was in the previous frame. For every pixel revealed in both frames (the current
 //! pixel in the current region, its warped position's nearest pixel in the previous region),
 //! the change is the mean over R, G and B of `|current - previous(warped, bilinear)|` in 8-bit
-//! levels. A static, exactly filled table gives 0 (up to interpolation); the ground truth's own
+//! levels. Only revealed pixels at least [`EDGE_MARGIN_PX`] from the in-between's silhouette
+//! count ([`flicker_region`]), and, where the set's table size is known, only pixels that see
+//! the table ([`Flicker::with_plane_extent`]). A static, exactly filled table gives 0 (up to
+//! interpolation); the ground truth's own
 //! figure is the floor a fill can reach (cast shadows and lighting move with the prop, and the
 //! sensor's noise, where there is one, is new in every frame).
 
@@ -84,6 +87,35 @@ pub fn plane_change(
     (count > 0).then(|| (sum / count as f64, count))
 }
 
+/// How far from the in-between's silhouette (Chebyshev, pixels) a revealed pixel must be to
+/// count for flicker: nearer pixels mix the prop's edge into the background in both the output
+/// and the truth, and that edge moves with the animation.
+pub const EDGE_MARGIN_PX: usize = 2;
+
+/// The region the flicker metric follows: revealed pixels (in `key`, not in `truth`) at
+/// least `margin` pixels (Chebyshev) from every pixel of `truth`.
+pub fn flicker_region(key: &[bool], truth: &[bool], width: usize, margin: usize) -> Vec<bool> {
+    let height = truth.len().checked_div(width).unwrap_or(0);
+    // Horizontal then vertical running maximum of `truth` over +-margin.
+    let mut near = vec![false; truth.len()];
+    for y in 0..height {
+        for x in 0..width {
+            let (a, b) = (x.saturating_sub(margin), (x + margin).min(width - 1));
+            near[y * width + x] = truth[y * width + a..=y * width + b].iter().any(|&t| t);
+        }
+    }
+    let mut out = vec![false; truth.len()];
+    for y in 0..height {
+        let (a, b) = (y.saturating_sub(margin), (y + margin).min(height - 1));
+        for x in 0..width {
+            let i = y * width + x;
+            out[i] =
+                key.get(i).copied().unwrap_or(false) && !(a..=b).any(|yy| near[yy * width + x]);
+        }
+    }
+    out
+}
+
 /// One frame as the flicker metric remembers it.
 struct Kept {
     ours: Vec<u8>,
@@ -98,17 +130,58 @@ pub struct Flicker {
     camera: CameraModel,
     width: usize,
     height: usize,
+    /// Only pixels whose ray meets the table plane in front of the camera within this
+    /// half-side (metres, marker frame) count: beyond the table the background is not on the
+    /// plane and no homography compensates it.
+    plane_half_m: f64,
     prev: Option<Kept>,
 }
 
 impl Flicker {
+    /// The metric for a camera; every pixel on the plane counts.
     pub fn new(intrinsics: Intrinsics) -> Self {
         Self {
             camera: CameraModel::pinhole(intrinsics),
             width: intrinsics.width as usize,
             height: intrinsics.height as usize,
+            plane_half_m: f64::INFINITY,
             prev: None,
         }
+    }
+
+    /// Counts only pixels that see the plane within `half_m` of the marker origin (in x and
+    /// y): the set's table.
+    pub fn with_plane_extent(mut self, half_m: f64) -> Self {
+        self.plane_half_m = half_m;
+        self
+    }
+
+    /// `region` less the pixels whose ray misses the table (behind the camera, or beyond
+    /// the extent).
+    fn on_table(&self, region: &[bool], camera_from_marker: Mat4) -> Vec<bool> {
+        let m = camera_from_marker.as_dmat4();
+        let plane = DMat3::from_cols(
+            m.x_axis.truncate(),
+            m.y_axis.truncate(),
+            DVec3::new(m.w_axis.x, m.w_axis.y, m.w_axis.z),
+        );
+        let marker_from_pixel = plane.inverse() * self.camera.intrinsics.matrix().inverse();
+        let w = self.width;
+        region
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| {
+                if !r {
+                    return false;
+                }
+                let q = marker_from_pixel * DVec3::new((i % w) as f64, (i / w) as f64, 1.0);
+                // The plane point is q / q.z; it is in front of the camera when the pixel's
+                // ray (depth 1 / q.z) is positive.
+                q.z > 1e-12
+                    && (q.x / q.z).abs() <= self.plane_half_m
+                    && (q.y / q.z).abs() <= self.plane_half_m
+            })
+            .collect()
     }
 
     /// Forgets the previous frame (a new sequence starts).
@@ -126,6 +199,13 @@ impl Flicker {
         region: &[bool],
         camera_from_marker: Mat4,
     ) -> Option<(f64, f64)> {
+        let on_table;
+        let region = if self.plane_half_m.is_finite() {
+            on_table = self.on_table(region, camera_from_marker);
+            &on_table[..]
+        } else {
+            region
+        };
         let result = self.prev.as_ref().and_then(|p| {
             // plane_homography(current, plate) maps plate pixels to current pixels: here the
             // "plate" is this frame and the "current" the previous one.

@@ -119,3 +119,55 @@ fn mismatched_sizes_measure_nothing() {
     let (d, n) = plane_change(&img, &img, 2, 2, DMat3::IDENTITY, &r, &r).expect("same");
     assert_eq!((d, n), (0.0, 4));
 }
+
+#[test]
+fn pixels_beyond_the_table_do_not_count() {
+    let (k, a, b) = cameras();
+    let (ia, _) = render(&k, a, 0.0, 1);
+    let (ib, rb) = render(&k, b, 0.0, 2);
+    // Frame b's pixels off the 0.3 m plane get a different colour (not on the plane): with
+    // the extent they are left out, so the change stays at the rounding floor.
+    let mut ib2 = ib.clone();
+    let all = vec![true; (W * H) as usize];
+    for (i, r) in rb.iter().enumerate() {
+        if !r {
+            ib2[i * 4] = 255;
+        }
+    }
+    let mut f = Flicker::new(k).with_plane_extent(0.3);
+    f.step(&ia, &ia, &all, a);
+    let (ours, _) = f.step(&ib2, &ib2, &all, b).expect("overlap");
+    assert!(ours < 0.6, "{ours}");
+    // A too small extent leaves out everything but the centre, still measured.
+    let mut f = Flicker::new(k).with_plane_extent(0.05);
+    f.step(&ia, &ia, &all, a);
+    assert!(f.step(&ib, &ib, &all, b).is_some());
+    // Without the extent the off-plane pixels count (the region is all pixels here).
+    let mut f = Flicker::new(k);
+    f.step(&ia, &ia, &all, a);
+    let (ours, _) = f.step(&ib2, &ib2, &all, b).expect("overlap");
+    assert!(ours > 1.0, "{ours}");
+}
+
+#[test]
+fn the_flicker_region_keeps_away_from_the_in_betweens_edge() {
+    // 7x5, the key covers everything, the truth one pixel at (3, 2).
+    let (w, h) = (7usize, 5usize);
+    let key = vec![true; w * h];
+    let mut truth = vec![false; w * h];
+    truth[2 * w + 3] = true;
+    let r = flicker_region(&key, &truth, w, 2);
+    for y in 0..h {
+        for x in 0..w {
+            let near = x.abs_diff(3) <= 2 && y.abs_diff(2) <= 2;
+            assert_eq!(r[y * w + x], !near, "({x}, {y})");
+        }
+    }
+    // Margin 0: revealed = key and not truth.
+    let r0 = flicker_region(&key, &truth, w, 0);
+    assert_eq!(r0.iter().filter(|&&b| !b).count(), 1);
+    // Not in the key, not in the region.
+    assert!(!flicker_region(&[false; 4], &[false; 4], 2, 1)
+        .iter()
+        .any(|&b| b));
+}

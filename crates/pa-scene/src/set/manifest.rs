@@ -11,6 +11,7 @@
 //!   "board": { "family": "tag36h11", "tags": [ { "id": 0, "center_m": [-0.085, -0.085],
 //!              "size_m": 0.045, "rotation_rad": 0.0 } ] },
 //!   "plate": { "image": "plate/0000.png", "camera_from_marker": [[...4 rows...]] },
+//!   "table_m": 1.6,
 //!   "frames": [ { "index": 0, "time_s": 0.0, "key_time_s": 0.0,
 //!                 "camera_from_marker": [[r00,r01,r02,tx],[...],[...],[0,0,0,1]],
 //!                 "input": "input/0000.png", "truth": "truth/0000.png",
@@ -88,6 +89,9 @@ pub struct SetManifest {
     pub board: Board,
     /// The clean plate for the plate fill: image (relative path) and its camera.
     pub plate: Option<(PathBuf, Mat4)>,
+    /// Side of the square table the board lies on (centred on the marker), metres: where
+    /// the background is the table plane (the flicker metric counts only those pixels).
+    pub table_m: Option<f32>,
     pub frames: Vec<SetFrame>,
 }
 
@@ -383,6 +387,16 @@ impl SetManifest {
             )),
             _ => None,
         };
+        let table_m = match v.get("table_m") {
+            Some(t) if !t.is_null() => {
+                let t = cx.num(t, "table_m")?;
+                if !(t > 0.0 && t <= 1000.0) {
+                    return Err(cx.err("table_m", "must be in (0, 1000] metres"));
+                }
+                Some(t as f32)
+            }
+            _ => None,
+        };
         let list = cx.arr(cx.get(&v, "frames", "frames")?, "frames")?;
         if list.is_empty() {
             return Err(cx.err("frames", "is empty"));
@@ -435,6 +449,7 @@ impl SetManifest {
             marker_from_prop,
             board,
             plate,
+            table_m,
             frames,
         })
     }

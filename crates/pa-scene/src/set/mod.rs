@@ -19,7 +19,7 @@ use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 pub use manifest::{SetFrame, SetManifest, SetModel};
 
 use crate::eval::{pose_error, FrameMetrics};
-use crate::flicker::Flicker;
+use crate::flicker::{flicker_region, Flicker, EDGE_MARGIN_PX};
 use crate::prop::{prop_model, PropSpec};
 use crate::SceneError;
 
@@ -159,6 +159,9 @@ pub fn run_set<E: From<SceneError>>(
 ) -> Result<Vec<FrameMetrics>, E> {
     let mut pipeline = pipeline_for_set(set, renderer, settings)?;
     let mut flicker = Flicker::new(set.intrinsics);
+    if let Some(table_m) = set.table_m {
+        flicker = flicker.with_plane_extent(f64::from(table_m) * 0.5);
+    }
     let mut all = Vec::new();
     for f in &set.frames {
         let img = read_frame(set, f)?;
@@ -177,13 +180,13 @@ pub fn run_set<E: From<SceneError>>(
             )
             .map_err(SceneError::from)?;
         let mut m = measure_set_frame(set, f, &img, &out);
-        let revealed: Vec<bool> = img
-            .key_mask
-            .iter()
-            .zip(&img.truth_mask)
-            .map(|(&k, &t)| k && !t)
-            .collect();
-        m.flicker = flicker.step(&out.rgba8, &img.truth, &revealed, f.camera_from_marker);
+        let region = flicker_region(
+            &img.key_mask,
+            &img.truth_mask,
+            set.width as usize,
+            EDGE_MARGIN_PX,
+        );
+        m.flicker = flicker.step(&out.rgba8, &img.truth, &region, f.camera_from_marker);
         each(f, &img, &out, &m)?;
         all.push(m);
     }

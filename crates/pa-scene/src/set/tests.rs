@@ -24,6 +24,7 @@ fn valid() -> Value {
         "board": {"family": "tag36h11", "tags": [
             {"id": 3, "center_m": [0.1, -0.1], "size_m": 0.045}]},
         "plate": {"image": "plate/0000.png", "camera_from_marker": cam},
+        "table_m": 1.6,
         "frames": [{"index": 0, "time_s": 0.5, "key_time_s": 0.0,
                     "camera_from_marker": cam, "input": "input/0000.png",
                     "truth": "truth/0000.png", "key_mask": "mask_key/0000.png",
@@ -57,6 +58,7 @@ fn a_valid_manifest_reads_every_field() {
     assert_eq!(m.model, SetModel::BuiltinBust);
     assert_eq!(m.intrinsics.fx, 10.0);
     assert_eq!(m.board.tags[0].id, 3);
+    assert_eq!(m.table_m, Some(1.6));
     assert_eq!(m.board.tags[0].center_m.y, -0.1);
     let f = &m.frames[0];
     assert_eq!(f.time_s, 0.5);
@@ -118,6 +120,7 @@ fn hostile_manifests_are_refused_naming_the_field() {
         ("plate.image", |v| {
             v["plate"]["image"] = json!("../../etc/passwd")
         }),
+        ("table_m", |v| v["table_m"] = json!(-1.6)),
         ("frames", |v| v["frames"] = json!([])),
         ("frames", |v| v["frames"] = json!({"0": 1})),
         ("frames[0].input", |v| {
