@@ -205,6 +205,11 @@ pub struct MethodRow {
     /// Medians over the frames.
     pub rot_err_deg_median: Option<f64>,
     pub texture_diminish_ms_median: Option<f64>,
+    /// Means over consecutive frame pairs: the frame-to-frame change of the revealed region
+    /// after camera compensation, 8-bit levels, of the output and of the ground truth
+    /// (`pa_scene::flicker`).
+    pub flicker_ours: Option<f64>,
+    pub flicker_truth: Option<f64>,
     /// Frames measured.
     pub frames: usize,
 }
@@ -214,12 +219,12 @@ pub fn methods_table(rows: &[MethodRow]) -> String {
     let mut table = String::new();
     let _ = writeln!(
         table,
-        "| background | method | prop PSNR dB | prop SSIM | revealed PSNR dB | revealed SSIM | rot. err. deg | texture+diminish ms |\n|---|---|---|---|---|---|---|---|"
+        "| background | method | prop PSNR dB | prop SSIM | revealed PSNR dB | revealed SSIM | rot. err. deg | texture+diminish ms | flicker ours / truth |\n|---|---|---|---|---|---|---|---|---|"
     );
     for r in rows {
         let _ = writeln!(
             table,
-            "| {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} / {} |",
             r.background,
             r.method,
             fmt(r.prop_psnr_db, 2),
@@ -227,7 +232,9 @@ pub fn methods_table(rows: &[MethodRow]) -> String {
             fmt(r.revealed_psnr_db, 2),
             fmt(r.revealed_ssim, 3),
             fmt(r.rot_err_deg_median, 3),
-            fmt(r.texture_diminish_ms_median, 1)
+            fmt(r.texture_diminish_ms_median, 1),
+            fmt(r.flicker_ours, 2),
+            fmt(r.flicker_truth, 2)
         );
     }
     table
@@ -241,7 +248,9 @@ impl MethodRow {
             "prop_psnr_db": self.prop_psnr_db, "prop_ssim": self.prop_ssim,
             "revealed_psnr_db": self.revealed_psnr_db,
             "revealed_ssim": self.revealed_ssim, "rot_err_deg_median": self.rot_err_deg_median,
-            "texture_diminish_ms_median": self.texture_diminish_ms_median, "frames": self.frames,
+            "texture_diminish_ms_median": self.texture_diminish_ms_median,
+            "flicker_ours": self.flicker_ours, "flicker_truth": self.flicker_truth,
+            "frames": self.frames,
         })
     }
 }

@@ -34,6 +34,54 @@ pub enum SceneError {
     /// The clean plate's image.
     #[error("{0}")]
     Diminish(pa_diminish::DiminishError),
+    /// A file of an external set (manifest, image) or of its kit.
+    #[error("{}: {problem}", file.display())]
+    Set {
+        file: std::path::PathBuf,
+        problem: SetProblem,
+    },
+    /// A set's frames differ in a way the measurement cannot use (sizes, masks).
+    #[error("set frame {frame}: {what}")]
+    SetFrame { frame: u32, what: &'static str },
+}
+
+/// What is wrong with a file of an external set.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SetProblem {
+    /// Opening, reading or writing it.
+    #[error("{message}")]
+    Io {
+        kind: std::io::ErrorKind,
+        message: String,
+    },
+    /// It is a folder, a device, a FIFO...
+    #[error("not a regular file")]
+    NotAFile,
+    /// It is larger than the reader's budget.
+    #[error("{bytes} bytes, more than the limit of {limit}")]
+    TooLarge { bytes: u64, limit: u64 },
+    /// It is not JSON.
+    #[error("not JSON at line {line}, column {column}: {message}")]
+    Json {
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    /// A field is missing or has a value the reader refuses.
+    #[error("field `{field}` {reason}")]
+    Field { field: String, reason: &'static str },
+    /// An image that does not decode.
+    #[error("not a readable image: {message}")]
+    Image { message: String },
+    /// An image of another size than the manifest's.
+    #[error("image is {width}x{height}, the manifest says {expected_width}x{expected_height}")]
+    ImageSize {
+        width: u32,
+        height: u32,
+        expected_width: u32,
+        expected_height: u32,
+    },
 }
 
 macro_rules! from {

@@ -19,6 +19,7 @@ use pa_pipeline::metrics::{psnr_region, ssim_region};
 use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
+use crate::flicker::{flicker_region, Flicker, EDGE_MARGIN_PX};
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
 use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
 use crate::SceneError;
@@ -42,6 +43,13 @@ pub struct FrameMetrics {
     pub trans_err_mm: Option<f64>,
     pub tracked: bool,
     pub timings: StageTimings,
+    /// Frame-to-frame change of the revealed region after camera compensation, 8-bit levels:
+    /// (ours, ground truth) ([`crate::flicker`]); None on a sequence's first frame.
+    pub flicker: Option<(f64, f64)>,
+    /// External sets: IoU of the pipeline's key-pose mask (tracked camera) with the set's key
+    /// mask, and of the twin's mask with the set's in-between mask (a convention check).
+    pub key_mask_iou: Option<f64>,
+    pub twin_mask_iou: Option<f64>,
 }
 
 /// The head joint's world transform at `time_s`.
@@ -101,6 +109,17 @@ pub fn measure(
     frame: &SceneFrame,
     out: &ArFrame,
 ) -> Result<FrameMetrics, SceneError> {
+    Ok(measure_revealed(scene, renderer, frame, out)?.0)
+}
+
+/// [`measure`], and the region the flicker metric follows (the revealed region away from the
+/// in-between's edge, [`flicker_region`]).
+fn measure_revealed(
+    scene: &Scene,
+    renderer: &mut Renderer,
+    frame: &SceneFrame,
+    out: &ArFrame,
+) -> Result<(FrameMetrics, Vec<bool>), SceneError> {
     let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
     let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
     let truth_mask = scene.prop_mask(renderer, frame.camera_from_marker, frame.time_s)?;
@@ -119,7 +138,7 @@ pub fn measure(
         }
         None => (None, None),
     };
-    Ok(FrameMetrics {
+    let m = FrameMetrics {
         frame: frame.index,
         key: frame.key,
         key_distance_deg: dist_deg,
@@ -132,7 +151,12 @@ pub fn measure(
         trans_err_mm,
         tracked: out.camera_from_marker.is_some(),
         timings: out.timings,
-    })
+        flicker: None,
+        key_mask_iou: None,
+        twin_mask_iou: None,
+    };
+    let region = flicker_region(&key_mask, &truth_mask, w, EDGE_MARGIN_PX);
+    Ok((m, region))
 }
 
 /// Builds the frame pipeline for a scene: the real tracker on the scene's board.
@@ -176,6 +200,8 @@ pub fn run_scene<E: From<SceneError>>(
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
     let mut all = Vec::new();
+    let mut flicker =
+        Flicker::new(scene.intrinsics).with_plane_extent(f64::from(crate::scene::TABLE_M) * 0.5);
     for i in frames {
         let f = scene.frame(renderer, i).map_err(SceneError::from)?;
         let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
@@ -192,7 +218,13 @@ pub fn run_scene<E: From<SceneError>>(
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;
-        let m = measure(&scene, renderer, &f, &out)?;
+        let (mut m, region) = measure_revealed(&scene, renderer, &f, &out)?;
+        m.flicker = flicker.step(
+            &out.rgba8,
+            &f.ground_truth.rgba8,
+            &region,
+            f.camera_from_marker,
+        );
         each(&f, &out, &m)?;
         all.push(m);
     }

@@ -5,16 +5,19 @@
 //! [`scene`] puts it on an AprilTag board on a textured table under a light, and renders what a
 //! moving camera sees: the physical key prop (the input), the in-between poses as if printed
 //! (the ground truth), and a clean plate. [`methods`] lists the pipeline configurations
-//! `propsalive eval` compares.
+//! `propsalive eval` compares. [`set`] reads takes of the same set rendered by another renderer
+//! (Blender) and measures them the same way; [`flicker`] is the temporal metric of the fill.
 
 mod error;
 pub mod eval;
+pub mod flicker;
 pub mod methods;
 pub mod prop;
 pub mod scene;
+pub mod set;
 pub mod tracking;
 
-pub use error::SceneError;
+pub use error::{SceneError, SetProblem};
 pub use prop::{prop_glb, prop_model, PropSpec};
 pub use scene::{Scene, SceneFrame, SceneSpec};
 

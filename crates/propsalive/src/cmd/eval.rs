@@ -6,6 +6,12 @@
 //! Runs every method on every background and seed, then hands the numbers to
 //! [`pa_report::eval`], which writes `report.md`, `results.json` and three SVG plots linked
 //! from the report (`methods.svg`, `degradation_rotation.svg`, `degradation_translation.svg`).
+//!
+//! `--set DIR` (repeatable) measures external sets instead: takes of our set rendered by
+//! another renderer (`scripts/blender/render_set.py`), one row per fill; `--write-kit DIR`
+//! writes what that renderer needs (see [`set`]).
+
+mod set;
 
 use std::path::PathBuf;
 
@@ -33,6 +39,8 @@ pub struct Args {
     /// Use every Nth frame of the 49-frame clip (1 = all).
     #[arg(long, default_value_t = 2)]
     pub stride: u32,
+    #[command(flatten)]
+    pub set: set::SetArgs,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -45,8 +53,14 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
 
+    if let Some(dir) = &args.set.write_kit {
+        return set::write_kit(&args.set, dir);
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    if !args.set.set.is_empty() {
+        return set::run_sets(&args);
+    }
     let mut renderer = Renderer::new()?;
     errln!("renderer: {}", renderer.adapter_info());
     let stride = args.stride;
@@ -91,6 +105,8 @@ pub fn run(args: Args) -> Result<()> {
                     all.iter()
                         .map(|f| Some(f.timings.texture_ms + f.timings.diminish_ms)),
                 ),
+                flicker_ours: mean(all.iter().map(|f| f.flicker.map(|x| x.0))),
+                flicker_truth: mean(all.iter().map(|f| f.flicker.map(|x| x.1))),
                 frames: all.len(),
             });
             if background == Background::Wood

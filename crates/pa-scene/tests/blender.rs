@@ -1,0 +1,73 @@
+//! `eval --set` on a few frames another renderer made: Blender's Cycles rendered our set with
+//! the built-in bust (`scripts/blender/render_set.py`, 64 samples per pixel, sun with a soft
+//! shadow, procedural wood); `scripts/blender/crop_set.py` cut frames 3-6 of the take to a
+//! 300x280 window (`tests/data/blender_bust`). The manifest's cameras were read back from
+//! Blender's camera objects, so they are the truth our tracker is held to.
+
+use std::path::Path;
+
+use pa_pipeline::ar::ArSettings;
+use pa_render::Renderer;
+use pa_scene::set::{run_set, SetManifest};
+use pa_scene::SceneError;
+
+fn set() -> SetManifest {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blender_bust");
+    SetManifest::read(&dir).expect("manifest")
+}
+
+#[test]
+fn the_tracker_agrees_with_blenders_cameras_and_the_fill_is_measured() {
+    let set = set();
+    assert_eq!(set.frames.len(), 4);
+    assert_eq!((set.width, set.height), (300, 280));
+    let mut renderer = Renderer::new().expect("renderer");
+    let ms = run_set(&mut renderer, &set, ArSettings::ours(), |_, _, _, m| {
+        eprintln!(
+            "frame {}: tracked {} rot {:?} trans {:?} key IoU {:?} twin IoU {:?} prop {:?} revealed {:?} flicker {:?}",
+            m.frame, m.tracked, m.rot_err_deg, m.trans_err_mm, m.key_mask_iou, m.twin_mask_iou,
+            m.psnr_prop, m.psnr_revealed, m.flicker
+        );
+        Ok::<(), SceneError>(())
+    })
+    .expect("runs");
+    // Each still is tracked alone, as `run` tracks stills.
+    assert!(ms.iter().all(|m| m.tracked));
+    for m in &ms {
+        // Convention check: our tracked pose against the pose Blender rendered.
+        let rot = m.rot_err_deg.expect("rotation error");
+        let trans = m.trans_err_mm.expect("translation error");
+        assert!(rot < 0.3, "frame {}: {rot} deg", m.frame);
+        assert!(trans < 2.5, "frame {}: {trans} mm", m.frame);
+        // Our key pose and in-between, drawn from the tracked pose, cover Blender's masks.
+        let key = m.key_mask_iou.expect("key IoU");
+        let twin = m.twin_mask_iou.expect("twin IoU");
+        assert!(key > 0.98, "frame {}: key IoU {key}", m.frame);
+        assert!(twin > 0.98, "frame {}: twin IoU {twin}", m.frame);
+        let prop = m.psnr_prop.expect("prop PSNR");
+        assert!(prop > 20.0, "frame {}: prop {prop} dB", m.frame);
+        let revealed = m.psnr_revealed.expect("revealed PSNR");
+        assert!(revealed > 20.0, "frame {}: {revealed} dB", m.frame);
+    }
+    // Flicker is measured from the second frame on, for ours and the truth.
+    assert!(ms[0].flicker.is_none());
+    for m in &ms[1..] {
+        let (ours, truth) = m.flicker.expect("flicker");
+        assert!(ours.is_finite() && truth.is_finite() && ours >= 0.0 && truth > 0.0);
+    }
+}
+
+#[test]
+fn a_damaged_set_is_a_typed_error_naming_the_file() {
+    let mut set = set();
+    set.frames[1].truth = "truth/missing.png".into();
+    let mut renderer = Renderer::new().expect("renderer");
+    let e = run_set(&mut renderer, &set, ArSettings::ours(), |_, _, _, _| {
+        Ok::<(), SceneError>(())
+    })
+    .expect_err("missing frame");
+    assert!(
+        matches!(&e, SceneError::Set { file, .. } if file.ends_with("truth/missing.png")),
+        "{e}"
+    );
+}

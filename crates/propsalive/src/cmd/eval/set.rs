@@ -1,0 +1,293 @@
+//! `propsalive eval --set DIR` and `--write-kit DIR`: external sets (takes of our set rendered
+//! by another renderer, `scripts/blender/render_set.py`), measured exactly as the generated
+//! scenes are, one row per fill; and the kit that renderer builds the set from.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use pa_pipeline::ar::{ArSettings, Fill};
+use pa_render::Renderer;
+use pa_report::eval::{methods_table, MethodRow};
+use pa_report::stats::{mean, median};
+use pa_scene::eval::{run_scene, FrameMetrics};
+use pa_scene::scene::Background;
+use pa_scene::set::kit::{kit, KitModel, KitSpec};
+use pa_scene::set::{run_set, SetManifest};
+use pa_scene::SceneSpec;
+
+use super::Args;
+
+#[derive(clap::Args)]
+pub struct SetArgs {
+    /// Measure an external set (a folder with manifest.json, e.g. rendered by
+    /// scripts/blender/render_set.py) instead of the generated scenes; repeatable.
+    #[arg(long, value_name = "DIR")]
+    pub set: Vec<PathBuf>,
+    /// With --set: also measure the same fills on the generated wood scene (--seeds, --size,
+    /// --stride), for rows side by side.
+    #[arg(long, requires = "set")]
+    pub with_generated: bool,
+    /// With --set: write every output frame as PNG under OUT/<set>/<fill>/.
+    #[arg(long, requires = "set")]
+    pub save_frames: bool,
+    /// Write the kit an external renderer builds the set from (kit.json, board.png and, for
+    /// the built-in bust, prop.glb) into DIR, and stop.
+    #[arg(long, value_name = "DIR", conflicts_with = "set")]
+    pub write_kit: Option<PathBuf>,
+    /// The kit's model: a glTF file with an animation (default: the built-in bust).
+    #[arg(long, requires = "write_kit")]
+    pub kit_model: Option<PathBuf>,
+    /// Height the kit's glTF model is scaled to, metres.
+    #[arg(long, default_value_t = 0.16)]
+    pub kit_height_m: f32,
+    /// Turn of the kit's glTF model about the up axis, degrees.
+    #[arg(long, default_value_t = 0.0)]
+    pub kit_yaw_deg: f32,
+    /// Frames of the kit's camera path.
+    #[arg(long, default_value_t = 16)]
+    pub kit_frames: u32,
+    /// Image size of the kit, WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x360")]
+    pub kit_size: String,
+}
+
+/// Writes the kit into `dir`.
+pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
+    let (width, height) = super::super::parse_size(&args.kit_size)?;
+    if args.kit_frames == 0 || args.kit_frames > 1000 {
+        anyhow::bail!("--kit-frames must be 1 to 1000, got {}", args.kit_frames);
+    }
+    let model = match &args.kit_model {
+        Some(path) => KitModel::Gltf {
+            path: path.clone(),
+            height_m: args.kit_height_m,
+            yaw_deg: args.kit_yaw_deg,
+        },
+        None => KitModel::BuiltinBust,
+    };
+    let k = kit(&KitSpec {
+        width,
+        height,
+        frames: args.kit_frames,
+        model,
+        ..KitSpec::default()
+    })?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (name, bytes) in &k.files {
+        pa_io::write_atomic(&dir.join(name), bytes)?;
+        outln!("wrote {}", dir.join(name).display());
+    }
+    Ok(())
+}
+
+/// The fills compared on a set, with the generated scenes' method names.
+fn fills() -> [(&'static str, ArSettings); 3] {
+    let ours = ArSettings::ours();
+    [
+        (
+            "live + visibility, rectangle fill",
+            ArSettings {
+                fill: Fill::PaperRectangle,
+                ..ours
+            },
+        ),
+        ("ours: live + visibility, ray fill", ours),
+        (
+            "ours with clean plate",
+            ArSettings {
+                fill: Fill::CleanPlate,
+                ..ours
+            },
+        ),
+    ]
+}
+
+fn short(name: &str) -> &'static str {
+    if name.contains("rectangle") {
+        "rectangle"
+    } else if name.contains("plate") {
+        "plate"
+    } else {
+        "rays"
+    }
+}
+
+fn row(background: String, method: &str, all: &[FrameMetrics]) -> MethodRow {
+    MethodRow {
+        background,
+        method: method.to_string(),
+        prop_psnr_db: mean(all.iter().map(|f| f.psnr_prop)),
+        prop_ssim: mean(all.iter().map(|f| f.ssim_prop)),
+        revealed_psnr_db: mean(all.iter().map(|f| f.psnr_revealed)),
+        revealed_ssim: mean(all.iter().map(|f| f.ssim_revealed)),
+        rot_err_deg_median: median(all.iter().map(|f| f.rot_err_deg)),
+        texture_diminish_ms_median: median(
+            all.iter()
+                .map(|f| Some(f.timings.texture_ms + f.timings.diminish_ms)),
+        ),
+        flicker_ours: mean(all.iter().map(|f| f.flicker.map(|x| x.0))),
+        flicker_truth: mean(all.iter().map(|f| f.flicker.map(|x| x.1))),
+        frames: all.len(),
+    }
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map(|x| format!("{x:.digits$}"))
+        .unwrap_or_else(|| "-".into())
+}
+
+/// The per-frame table of one set and fill.
+fn frame_table(all: &[FrameMetrics]) -> String {
+    let mut t = String::from(
+        "| frame | tracked | rot. err. deg | trans. err. mm | key mask IoU | twin mask IoU | prop PSNR dB | revealed PSNR dB | flicker ours / truth |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for f in all {
+        let _ = writeln!(
+            t,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} / {} |",
+            f.frame,
+            f.tracked,
+            opt(f.rot_err_deg, 3),
+            opt(f.trans_err_mm, 2),
+            opt(f.key_mask_iou, 3),
+            opt(f.twin_mask_iou, 3),
+            opt(f.psnr_prop, 2),
+            opt(f.psnr_revealed, 2),
+            opt(f.flicker.map(|x| x.0), 2),
+            opt(f.flicker.map(|x| x.1), 2),
+        );
+    }
+    t
+}
+
+fn save_png(path: &Path, width: u32, height: u32, rgba8: &[u8]) -> Result<()> {
+    let img = image::RgbaImage::from_raw(width, height, rgba8.to_vec())
+        .context("output frame of the wrong size")?;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    pa_io::write_atomic(path, &png)?;
+    Ok(())
+}
+
+/// Runs every fill over every set (and, with `--with-generated`, the generated wood scene);
+/// writes `report.md` and `results.json` into `--out`.
+pub fn run_sets(args: &Args) -> Result<()> {
+    let mut renderer = Renderer::new()?;
+    errln!("renderer: {}", renderer.adapter_info());
+    let mut rows = Vec::new();
+    let mut details = String::new();
+    let mut json_frames = Vec::new();
+    for dir in &args.set.set {
+        let set = SetManifest::read(dir)?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| dir.display().to_string());
+        errln!(
+            "set {name}: {} frames {}x{}, {}",
+            set.frames.len(),
+            set.width,
+            set.height,
+            set.renderer
+        );
+        for (method, settings) in fills() {
+            let frames_dir = args.out.join(&name).join(short(method));
+            if args.set.save_frames {
+                std::fs::create_dir_all(&frames_dir)
+                    .with_context(|| format!("creating {}", frames_dir.display()))?;
+            }
+            let all = run_set(&mut renderer, &set, settings, |f, _, out, m| {
+                errln!(
+                    "  {} frame {}: rot {} deg, trans {} mm, key IoU {}, prop {} dB, revealed {} dB",
+                    short(method),
+                    f.index,
+                    opt(m.rot_err_deg, 3),
+                    opt(m.trans_err_mm, 2),
+                    opt(m.key_mask_iou, 3),
+                    opt(m.psnr_prop, 2),
+                    opt(m.psnr_revealed, 2)
+                );
+                if args.set.save_frames {
+                    save_png(
+                        &frames_dir.join(format!("{:04}.png", f.index)),
+                        set.width,
+                        set.height,
+                        &out.rgba8,
+                    )?;
+                }
+                anyhow::Ok(())
+            })?;
+            let _ = write!(details, "\n### {name}: {method}\n\n{}", frame_table(&all));
+            for f in &all {
+                json_frames.push(serde_json::json!({
+                    "set": name, "method": method, "frame": f.frame, "tracked": f.tracked,
+                    "rot_err_deg": f.rot_err_deg, "trans_err_mm": f.trans_err_mm,
+                    "key_mask_iou": f.key_mask_iou, "twin_mask_iou": f.twin_mask_iou,
+                    "prop_psnr_db": f.psnr_prop, "revealed_psnr_db": f.psnr_revealed,
+                    "flicker_ours": f.flicker.map(|x| x.0),
+                    "flicker_truth": f.flicker.map(|x| x.1),
+                }));
+            }
+            rows.push(row(format!("Blender: {name}"), method, &all));
+        }
+    }
+    if args.set.with_generated {
+        let (w, h) = super::super::parse_size(&args.size)?;
+        let frames: Vec<u32> = (0..3)
+            .chain((3..49).step_by(args.stride as usize))
+            .collect();
+        for (method, settings) in fills() {
+            let mut all = Vec::new();
+            for &seed in &args.seeds {
+                errln!("generated Wood seed {seed}: {method}");
+                let spec = SceneSpec {
+                    seed,
+                    width: w,
+                    height: h,
+                    background: Background::Wood,
+                    ..SceneSpec::default()
+                };
+                all.extend(run_scene(
+                    &mut renderer,
+                    spec,
+                    settings,
+                    frames.iter().copied(),
+                    |_, _, _| anyhow::Ok(()),
+                )?);
+            }
+            rows.push(row(format!("generated Wood {w}x{h}"), method, &all));
+        }
+    }
+    let report = format!(
+        "# Props Alive evaluation on external sets\n\nSets: {}. Real tracker on the set's input \
+         frames; ground truth = the set's in-between renders and masks; flicker = mean \
+         frame-to-frame change (8-bit levels) of the revealed region after the table-plane \
+         homography of the true cameras, ours / the ground truth's.\n\n## Methods\n\n{}\n\
+         ## Frames\n{details}",
+        args.set
+            .set
+            .iter()
+            .map(|d| d.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        methods_table(&rows)
+    );
+    let json = serde_json::json!({
+        "sets": args.set.set.iter().map(|d| d.display().to_string()).collect::<Vec<_>>(),
+        "methods": rows.iter().map(MethodRow::json).collect::<Vec<_>>(),
+        "frames": json_frames,
+    });
+    pa_io::write_atomic(&args.out.join("report.md"), report.as_bytes())?;
+    pa_io::write_atomic(
+        &args.out.join("results.json"),
+        serde_json::to_string_pretty(&json)?.as_bytes(),
+    )?;
+    out!("{}", methods_table(&rows));
+    outln!(
+        "\nwrote {} and {}",
+        args.out.join("report.md").display(),
+        args.out.join("results.json").display()
+    );
+    Ok(())
+}
