@@ -33,6 +33,7 @@ pub mod metrics;
 pub mod plate;
 pub mod ray_fill;
 pub mod rect_fill;
+pub mod shadow;
 pub mod types;
 
 pub use error::DiminishError;
@@ -41,6 +42,7 @@ pub use metrics::{mse_rgb, psnr_rgb};
 pub use plate::{CleanPlate, GainEstimate, GainModel, GainSpace, Homography};
 pub use ray_fill::RayDirections;
 pub use rect_fill::{baseline_rect, paper_rectangle_fill};
+pub use shadow::{cast_shadow, lift_shadow, measure_shadow, ShadowMatte, ShadowRatio};
 pub use types::{ImageRgba8, Mask, Rect};
 
 use types::ensure_same_size;
