@@ -424,6 +424,30 @@ pub fn shadow_fit_error(
     Ok((n > 0).then(|| sum / n as f64))
 }
 
+/// How much of the observed darkening the umbra of `matte` explains: over its umbra pixels
+/// (weight at least [`UMBRA_WEIGHT`], not excluded), in linear luminance, the sum of
+/// `(Y - lit)^2 - (Y - s lit)^2` with `s` the ratio's luminance. A pixel that is really in a
+/// shadow of that darkness adds, a lit pixel wrongly counted subtracts: the region that best
+/// matches the real shadow scores highest.
+pub fn explained_darkening(
+    image: &ImageRgba8,
+    matte: &ShadowMatte,
+    ratio: &ShadowRatio,
+    lit_luminance: f32,
+    exclude: Option<&Mask>,
+) -> Result<f64, DiminishError> {
+    check(image, matte, exclude)?;
+    let s = ratio.luminance();
+    let lit = f64::from(lit_luminance);
+    Ok(samples(image, matte, exclude)
+        .filter(|(w, _)| *w >= UMBRA_WEIGHT)
+        .map(|(_, c)| {
+            let y = f64::from(0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]);
+            (y - lit).powi(2) - (y - f64::from(s) * lit).powi(2)
+        })
+        .sum())
+}
+
 /// The median linear luminance of the lit pixels of the matte's rectangle (weight below
 /// [`LIT_WEIGHT`], not excluded); `None` without any.
 pub fn lit_luminance(

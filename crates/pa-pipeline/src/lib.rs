@@ -10,6 +10,7 @@ pub mod cpu_twin;
 pub mod framing;
 pub mod metrics;
 pub mod shading;
+pub mod shadow;
 pub mod shot;
 pub mod shot_config;
 pub mod twin;
