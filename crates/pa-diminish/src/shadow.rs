@@ -448,6 +448,128 @@ pub fn explained_darkening(
         .sum())
 }
 
+/// What [`outline_darkening`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutlineDarkening {
+    /// Median log-ratio (outside over inside luminance) times the pairs: higher = a
+    /// stronger, longer shadow edge along the outline.
+    pub score: f64,
+    /// Per channel, the median of the pairs' inside / outside (clamped to
+    /// [[`MIN_RATIO`], 1]); its sample counts are the pairs.
+    pub ratio: ShadowRatio,
+}
+
+/// The darkening across the outline of a hard matte: at every outline pixel of `hard` (weight
+/// at least 0.5 with a 4-neighbour below), the pixel `step_px` inside along the outline's
+/// normal and the one `step_px` outside are compared by the log-ratio of their linear
+/// luminances, `ln(outside / inside)` clamped to [-1.5, 1.5] (pairs with a pixel in
+/// `exclude`, beyond the rectangle, or a black outside, are skipped). The score is the
+/// median log-ratio times the number of pairs; the ratio, per channel, the median of the
+/// pairs' inside / outside. `None` without pairs.
+///
+/// A real shadow of that outline darkens every pair alike and the score grows with the
+/// visible outline; a region that is only part of the real shadow has part of its outline
+/// inside it (pairs near 0), one that spills onto the lit table loses the real edge; and the
+/// pairs that straddle printed high-contrast texture (a tag's squares, a sheet's edge) are a
+/// minority the median ignores, where a comparison of the region's median against its
+/// surroundings' would take a black tag or dark wood beside white paper for a shadow.
+pub fn outline_darkening(
+    image: &ImageRgba8,
+    hard: &ShadowMatte,
+    step_px: f32,
+    exclude: Option<&Mask>,
+) -> Result<Option<OutlineDarkening>, DiminishError> {
+    check(image, hard, exclude)?;
+    let lut = decode_lut();
+    let rect = hard.rect;
+    let (rw, rh) = (rect.width as i64, rect.height as i64);
+    let fw = image.width() as usize;
+    let px = image.as_slice();
+    let inside = |lx: i64, ly: i64| {
+        lx >= 0 && ly >= 0 && lx < rw && ly < rh && hard.weights[(ly * rw + lx) as usize] >= 0.5
+    };
+    let rgb = |lx: i64, ly: i64| -> Option<[f32; 3]> {
+        if lx < 0 || ly < 0 || lx >= rw || ly >= rh {
+            return None;
+        }
+        let i = (rect.y as usize + ly as usize) * fw + rect.x as usize + lx as usize;
+        if exclude.is_some_and(|m| m.as_slice()[i] != 0) {
+            return None;
+        }
+        let p = &px[i * 4..i * 4 + 3];
+        Some([lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
+    };
+    let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let mut logs: Vec<f32> = Vec::new();
+    let mut ratios: [Vec<f32>; 3] = Default::default();
+    for ly in 0..rh {
+        for lx in 0..rw {
+            if !inside(lx, ly)
+                || (inside(lx - 1, ly)
+                    && inside(lx + 1, ly)
+                    && inside(lx, ly - 1)
+                    && inside(lx, ly + 1))
+            {
+                continue;
+            }
+            // The outward normal: from the centre of the inside pixels of the 5x5
+            // neighbourhood toward this pixel's outside ones.
+            let (mut gx, mut gy) = (0.0f32, 0.0f32);
+            for dy in -2..=2i64 {
+                for dx in -2..=2i64 {
+                    if !inside(lx + dx, ly + dy) {
+                        gx += dx as f32;
+                        gy += dy as f32;
+                    }
+                }
+            }
+            let g = (gx * gx + gy * gy).sqrt();
+            if g < 1e-3 {
+                continue;
+            }
+            let (nx, ny) = (gx / g, gy / g);
+            let (ix, iy) = (
+                (lx as f32 - nx * step_px).round() as i64,
+                (ly as f32 - ny * step_px).round() as i64,
+            );
+            let (ox, oy) = (
+                (lx as f32 + nx * (step_px + 1.0)).round() as i64,
+                (ly as f32 + ny * (step_px + 1.0)).round() as i64,
+            );
+            if !inside(ix, iy) || inside(ox, oy) {
+                continue;
+            }
+            let (Some(ci), Some(co)) = (rgb(ix, iy), rgb(ox, oy)) else {
+                continue;
+            };
+            let (yi, yo) = (lum(ci), lum(co));
+            if yo < 1e-3 {
+                continue;
+            }
+            logs.push((yo / yi.max(1e-4)).ln().clamp(-1.5, 1.5));
+            for c in 0..3 {
+                ratios[c].push(if co[c] > 1e-4 { ci[c] / co[c] } else { 1.0 });
+            }
+        }
+    }
+    let n = logs.len();
+    if n == 0 {
+        return Ok(None);
+    }
+    let mut rgb = [1.0f32; 3];
+    for (c, r) in ratios.iter_mut().enumerate() {
+        rgb[c] = median(r).clamp(MIN_RATIO, 1.0);
+    }
+    Ok(Some(OutlineDarkening {
+        score: f64::from(median(&mut logs)) * n as f64,
+        ratio: ShadowRatio {
+            rgb,
+            shadow_samples: n,
+            lit_samples: n,
+        },
+    }))
+}
+
 /// The median linear luminance of the lit pixels of the matte's rectangle (weight below
 /// [`LIT_WEIGHT`], not excluded); `None` without any.
 pub fn lit_luminance(

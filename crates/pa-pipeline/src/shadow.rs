@@ -17,7 +17,8 @@
 use glam::{Mat4, Vec3};
 use pa_camera::CameraModel;
 use pa_diminish::shadow::{
-    explained_darkening, fit_softness, lit_luminance, measure_shadow, ShadowMatte, ShadowRatio,
+    explained_darkening, fit_softness, lit_luminance, measure_shadow, outline_darkening,
+    ShadowMatte, ShadowRatio,
 };
 use pa_diminish::{DiminishError, ImageRgba8, Mask};
 use pa_model::{anim::Pose, Model};
@@ -39,6 +40,12 @@ pub const MAX_SHADOW_LUMINANCE: f32 = 0.7;
 
 /// Extra pixels around a predicted shadow where the lit ring is measured.
 pub const RING_PX: u32 = 12;
+
+/// How far inside and outside an outline [`measure_outline`] compares beyond the penumbra.
+const OUTLINE_EXTRA_PX: f32 = 1.0;
+
+/// Fewest outline pairs in view for [`measure_outline`].
+pub const MIN_OUTLINE_PAIRS: usize = 16;
 
 /// Softness candidates (Gaussian deviation, pixels) for [`estimate_light`].
 pub const SOFTNESS_CANDIDATES_PX: [f32; 7] = [0.75, 1.5, 2.5, 4.0, 6.0, 9.0, 13.0];
@@ -185,6 +192,37 @@ fn score(
     Ok(Some((e as f32, r)))
 }
 
+/// The darkening of the shadow of `triangles` under `light` in `frame`, measured across its
+/// outline just past the penumbra (three deviations of the softness and a pixel); `None`
+/// when the outline is not in view. Pairs straddle one surface, so a shadow across a sheet's
+/// edge measures as well as one on a single surface.
+pub fn measure_outline(
+    frame: &ImageRgba8,
+    triangles: &[[Vec3; 3]],
+    light: &ShadowLight,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &Mask,
+) -> Result<Option<ShadowRatio>, DiminishError> {
+    let (w, h) = frame.size();
+    let step = 3.0 * light.softness_px + OUTLINE_EXTRA_PX;
+    let margin = RING_PX + step.ceil() as u32;
+    let Some(m) = hard_matte(
+        triangles,
+        light.toward_light,
+        camera,
+        camera_from_marker,
+        margin,
+        w,
+        h,
+    ) else {
+        return Ok(None);
+    };
+    Ok(outline_darkening(frame, &m, step, Some(exclude))?
+        .filter(|o| o.ratio.shadow_samples >= MIN_OUTLINE_PAIRS)
+        .map(|o| o.ratio))
+}
+
 /// Estimates the key light from the darkening on the table around the key prop: see the
 /// module docs. `key_triangles` is the key pose in the marker frame, `exclude` the pixels
 /// that are not table (the key prop, dilated). `Ok(None)` when no direction predicts a
@@ -249,11 +287,29 @@ pub fn estimate_light(
     else {
         return Ok(None);
     };
-    Ok(Some(ShadowLight {
+    let mut light = ShadowLight {
         toward_light: dir,
         softness_px,
         ratio_rgb: ratio.rgb,
-    }))
+    };
+    // The ratio across the outline where enough of it is in view: each pair compares one
+    // surface, where the medians compare the umbra's surfaces with the ring's.
+    if let Some(r) = measure_outline(
+        frame,
+        key_triangles,
+        &light,
+        camera,
+        camera_from_marker,
+        exclude,
+    )? {
+        if r.luminance() <= MAX_SHADOW_LUMINANCE {
+            light.ratio_rgb = r.rgb;
+        }
+    }
+    // Not measurably darker after all (the softened region's ratio): no light.
+    let r = light.ratio_rgb;
+    let luminance = 0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2];
+    Ok((luminance <= MAX_SHADOW_LUMINANCE).then_some(light))
 }
 
 #[cfg(test)]
