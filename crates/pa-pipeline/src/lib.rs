@@ -13,6 +13,7 @@ pub mod shading;
 pub mod shadow;
 pub mod shot;
 pub mod shot_config;
+pub mod shot_diminish;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};
