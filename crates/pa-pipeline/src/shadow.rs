@@ -293,7 +293,9 @@ pub fn estimate_light(
         ratio_rgb: ratio.rgb,
     };
     // The ratio across the outline where enough of it is in view: each pair compares one
-    // surface, where the medians compare the umbra's surfaces with the ring's.
+    // surface, where the medians compare the umbra's surfaces with the ring's. An outline
+    // that shows no darkening vetoes the medians (dark print or wood beside the region
+    // posing as a shadow: a false light would cast a twin's shadow on a shadowless set).
     if let Some(r) = measure_outline(
         frame,
         key_triangles,
@@ -302,9 +304,10 @@ pub fn estimate_light(
         camera_from_marker,
         exclude,
     )? {
-        if r.luminance() <= MAX_SHADOW_LUMINANCE {
-            light.ratio_rgb = r.rgb;
+        if r.luminance() > MAX_SHADOW_LUMINANCE {
+            return Ok(None);
         }
+        light.ratio_rgb = r.rgb;
     }
     // Not measurably darker after all (the softened region's ratio): no light.
     let r = light.ratio_rgb;
