@@ -25,6 +25,13 @@
 //!   around the mask; correct texture, not just a smooth guess. Pixels the plate does not
 //!   cover fall back to the ray fill. O(N x M) samples + O(ring). See [`plate`].
 //!
+//! # Shadows ([`shadow`])
+//! A cast shadow on the table is a soft matte ([`ShadowMatte`]: pixel-space triangles from
+//! the caller, blurred by a Gaussian) and one darkening ratio per channel (shadowed / lit,
+//! linear light), measured by medians or across the matte's outline; [`lift_shadow`] divides
+//! it out of a plate, [`cast_shadow`] lays it onto one. No meshes here: the pipeline projects
+//! the prop along the light and hands the triangles in.
+//!
 //! Run `cargo run --release -p pa-diminish --example fill_timing` for the timings.
 
 pub mod error;
@@ -33,6 +40,7 @@ pub mod metrics;
 pub mod plate;
 pub mod ray_fill;
 pub mod rect_fill;
+pub mod shadow;
 pub mod types;
 
 pub use error::DiminishError;
@@ -41,6 +49,7 @@ pub use metrics::{mse_rgb, psnr_rgb};
 pub use plate::{CleanPlate, GainEstimate, GainModel, GainSpace, Homography};
 pub use ray_fill::RayDirections;
 pub use rect_fill::{baseline_rect, paper_rectangle_fill};
+pub use shadow::{cast_shadow, lift_shadow, measure_shadow, ShadowMatte, ShadowRatio};
 pub use types::{ImageRgba8, Mask, Rect};
 
 use types::ensure_same_size;

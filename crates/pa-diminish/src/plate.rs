@@ -172,7 +172,7 @@ impl GainEstimate {
     };
 }
 
-fn decode_lut() -> &'static [f32; 256] {
+pub(crate) fn decode_lut() -> &'static [f32; 256] {
     static LUT: OnceLock<[f32; 256]> = OnceLock::new();
     LUT.get_or_init(|| {
         let mut t = [0.0f32; 256];
@@ -206,6 +206,15 @@ fn encode_lut() -> &'static [f32] {
             })
             .collect()
     })
+}
+
+/// Linear light in [0, 1] (clamped) to an sRGB byte, through the encoding table.
+pub(crate) fn encode_linear(v: f32) -> u8 {
+    let lut = encode_lut();
+    let t = v.clamp(0.0, 1.0) * ENC_N as f32;
+    let i = (t as usize).min(ENC_N - 1);
+    let f = t - i as f32;
+    (lut[i] + (lut[i + 1] - lut[i]) * f + 0.5).clamp(0.0, 255.0) as u8
 }
 
 struct Space {

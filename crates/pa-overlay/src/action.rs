@@ -18,6 +18,10 @@ pub enum Action {
     /// The next key prop is now in front of the camera.
     NextKeyPose,
     ToggleDiminish,
+    /// The next fill of the preview's list (the real prop removed another way).
+    CycleFill,
+    /// Shadows on or off (the key prop's lifted, the twin's cast).
+    ToggleShadows,
     ToggleAxes,
     ToggleMasks,
     ToggleOnion,
@@ -41,6 +45,8 @@ pub const HELP: &[&str] = &[
     "Space         play / pause the animation",
     "K             next key pose (the key prop in front of the camera)",
     "D             diminished reality on / off",
+    "F             next fill (rays, plate, rectangle, ...)",
+    "S             shadows on / off (lift the prop's, cast the twin's)",
     "A             tracked marker axes",
     "M             masks (key pose magenta, twin cyan)",
     "O             onion skin (previous in-between red, next green)",
@@ -69,5 +75,7 @@ mod tests {
         assert!(!repeats(Action::Capture));
         assert!(!repeats(Action::ToggleRecording));
         assert!(!repeats(Action::PlayPause));
+        assert!(!repeats(Action::CycleFill));
+        assert!(!repeats(Action::ToggleShadows));
     }
 }

@@ -84,6 +84,11 @@ pub struct PreviewState {
     pub key: usize,
     /// Diminished reality: the real prop is removed where the twin does not cover it.
     pub diminish: bool,
+    /// The fills to cycle through (names, at least one) and the one used.
+    pub fills: Vec<String>,
+    pub fill: usize,
+    /// Shadows: the key prop's cast shadow lifted, the twin's cast.
+    pub shadows: bool,
     pub overlays: Overlays,
     pub recording: bool,
 }
@@ -106,9 +111,27 @@ impl PreviewState {
             key_poses,
             key,
             diminish: true,
+            fills: vec!["rays".into()],
+            fill: 0,
+            shadows: false,
             overlays: Overlays::default(),
             recording: false,
         }
+    }
+
+    /// The fills to cycle through with `F` (an empty list keeps the current one) and the
+    /// one in use (clamped to the list).
+    pub fn with_fills(mut self, fills: Vec<String>, current: usize) -> Self {
+        if !fills.is_empty() {
+            self.fill = current.min(fills.len() - 1);
+            self.fills = fills;
+        }
+        self
+    }
+
+    /// The name of the fill in use.
+    pub fn fill_name(&self) -> &str {
+        &self.fills[self.fill.min(self.fills.len() - 1)]
     }
 
     /// Number of frames in the clip.
@@ -167,6 +190,16 @@ impl PreviewState {
             }
             Action::ToggleDiminish => {
                 self.diminish = !self.diminish;
+                Effect::None
+            }
+            Action::CycleFill => {
+                // Choosing a fill means diminishing with it.
+                self.fill = (self.fill + 1) % self.fills.len();
+                self.diminish = true;
+                Effect::None
+            }
+            Action::ToggleShadows => {
+                self.shadows = !self.shadows;
                 Effect::None
             }
             Action::ToggleAxes => {
@@ -336,6 +369,30 @@ mod tests {
             s.apply(Action::SelectCapture(-1)),
             Effect::SelectCapture(-1)
         );
+    }
+
+    #[test]
+    fn fills_cycle_and_shadows_toggle() {
+        let mut s = state();
+        assert_eq!((s.fill_name(), s.shadows), ("rays", false));
+        let mut s2 = state().with_fills(vec![], 3);
+        assert_eq!(s2.fill_name(), "rays", "an empty list keeps the fill");
+        assert_eq!(s2.apply(Action::CycleFill), Effect::None);
+        assert_eq!(s2.fill_name(), "rays", "one fill cycles to itself");
+        s = s.with_fills(vec!["rays".into(), "plate".into(), "rectangle".into()], 1);
+        assert_eq!(s.fill_name(), "plate");
+        s.diminish = false;
+        assert_eq!(s.apply(Action::CycleFill), Effect::None);
+        assert_eq!((s.fill_name(), s.diminish), ("rectangle", true));
+        s.apply(Action::CycleFill);
+        assert_eq!(s.fill_name(), "rays");
+        assert_eq!(state().with_fills(vec!["a".into()], 9).fill, 0);
+        assert_eq!(s.apply(Action::ToggleShadows), Effect::None);
+        assert!(s.shadows);
+        s.apply(Action::ToggleShadows);
+        assert!(!s.shadows);
+        // The status line's flags are unchanged by both.
+        assert_eq!(s.flags(), state().flags());
     }
 
     #[test]

@@ -10,8 +10,10 @@ pub mod cpu_twin;
 pub mod framing;
 pub mod metrics;
 pub mod shading;
+pub mod shadow;
 pub mod shot;
 pub mod shot_config;
+pub mod shot_diminish;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};

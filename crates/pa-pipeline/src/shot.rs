@@ -24,6 +24,9 @@
 //! translation_m = [0.0, 0.0, 0.0]
 //! upright = true                # prop +Y up (marker -Z), prop front +Z toward marker +Y
 //! yaw_deg = 0.0                 # then a turn about the prop's up axis
+//!
+//! [diminish]                    # optional: see crate::shot_diminish
+//! fill = "rays"
 //! ```
 //!
 //! Hostile input: the file is read through [`pa_io`] (a regular file of at most
@@ -38,6 +41,8 @@ use std::path::{Path, PathBuf};
 use glam::{Mat3, Mat4, Vec3};
 use pa_camera::diag::{fmt_position, toml_error};
 use serde::{Deserialize, Deserializer, Serialize};
+
+pub use crate::shot_diminish::ShotDiminish;
 
 /// The largest shot file read (4 MiB): a shot is a few hundred bytes, a board of every
 /// tag36h11 code about 40 KiB.
@@ -66,6 +71,13 @@ const FIELDS: &[&str] = &[
     "translation_m",
     "upright",
     "yaw_deg",
+    // [diminish] (crate::shot_diminish::FIELDS)
+    "diminish",
+    "fill",
+    "clean_plate",
+    "plate_frames",
+    "dilation_px",
+    "shadows",
 ];
 
 /// Errors reading, checking or writing a shot, or turning it into a board or a camera
@@ -260,6 +272,9 @@ pub struct Shot {
     pub marker: ShotMarker,
     #[serde(default)]
     pub placement: Placement,
+    /// How the real prop is removed ([`crate::shot_diminish`]).
+    #[serde(default, skip_serializing_if = "ShotDiminish::is_empty")]
+    pub diminish: ShotDiminish,
 }
 
 fn default_fps() -> f32 {
@@ -401,7 +416,7 @@ impl Shot {
         if !p.yaw_deg.is_finite() {
             return Err(bad("[placement] yaw_deg is not a finite number".into()));
         }
-        Ok(())
+        crate::shot_diminish::check(&self.diminish, path)
     }
 
     /// Checks the shot against its model: the clip exists, every key frame is inside the

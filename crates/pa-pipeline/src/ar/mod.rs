@@ -15,6 +15,7 @@
 mod config;
 mod fill;
 mod frame;
+mod shadows;
 #[cfg(test)]
 mod tests;
 mod texture;
@@ -34,6 +35,7 @@ use crate::twin::GpuTwin;
 pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
+pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};
 
@@ -87,6 +89,8 @@ pub struct ArPipeline {
     /// The fill mask, and the region of it the last frame set.
     fill_mask: Option<(Mask, Option<Rect>)>,
     keep_passes: bool,
+    /// Shadows: on or off, and the light ([`shadows`]).
+    shadows: shadows::ShadowState,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -155,6 +159,7 @@ impl ArPipeline {
             cpu: None,
             fill_mask: None,
             keep_passes: false,
+            shadows: shadows::ShadowState::default(),
         })
     }
 
@@ -344,9 +349,19 @@ impl ArPipeline {
         let n = (width * height) as usize;
         debug_assert_eq!(textured.twin_mask.len(), n);
 
-        // Diminish: fill the dilated key silhouette in a copy of the frame (fill.rs).
+        // Diminish: lift the key props' shadow (shadows.rs), then fill the dilated key
+        // silhouette in a copy of the frame (fill.rs).
         let t = Instant::now();
-        let background = self.diminish(&view, &textured)?;
+        let shadow_tris = self.shadow_triangles(times);
+        let lifted = match &shadow_tris {
+            Some(tris) => self.lift_key_shadow(&view, &textured, tris)?,
+            None => None,
+        };
+        let fill_view = match &lifted {
+            Some(l) => FrameView { rgba8: l, ..view },
+            None => view,
+        };
+        let mut background = self.diminish(&fill_view, &textured)?;
         timings.diminish_ms = ms(t);
         let Textured {
             key_mask,
@@ -367,8 +382,11 @@ impl ArPipeline {
                 .collect(),
         });
 
-        // Composite: twin over the diminished background.
+        // Composite: the twins' shadow, then the twins, over the diminished background.
         let t = Instant::now();
+        if let Some(tris) = &shadow_tris {
+            self.cast_twin_shadow(&mut background, &view, tris)?;
+        }
         let mut out = background.into_vec();
         composite_twin_over_in(
             &mut out,

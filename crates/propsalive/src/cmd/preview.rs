@@ -114,6 +114,10 @@ pub struct Args {
     /// screen to DIR/presented.json.
     #[arg(long)]
     pub dump_presented: Option<PathBuf>,
+    /// How the real prop is removed at start (overriding the shot's `[diminish]`); `F` cycles
+    /// the fills, `S` toggles shadows.
+    #[command(flatten)]
+    pub diminish: crate::cmd::run::diminish::DiminishArgs,
 }
 
 /// The command's long help: what it does and the keys.
@@ -157,7 +161,7 @@ struct Preview {
     state: PreviewState,
     fps: f32,
     axes_len_m: f32,
-    /// The fill used while diminishing is on.
+    /// The fill used while diminishing is on when the state's fill has none in this build.
     fill: Fill,
     onion_twin: Option<GpuTwin>,
     captures: Captures,
@@ -191,7 +195,16 @@ impl Preview {
     /// Carries out one action's effect; false to quit. A capture or recording that cannot be
     /// written is said on screen and on stderr, and the preview goes on.
     fn act(&mut self, action: Action) -> bool {
-        match self.state.apply(action) {
+        let effect = self.state.apply(action);
+        match action {
+            Action::CycleFill => self.toast(format!("fill: {}", self.state.fill_name())),
+            Action::ToggleShadows => {
+                let on = if self.state.shadows { "on" } else { "off" };
+                self.toast(format!("shadows {on}"));
+            }
+            _ => {}
+        }
+        match effect {
             Effect::None => {}
             Effect::Quit => return false,
             Effect::PrintHelp => print_help(),
@@ -432,10 +445,11 @@ impl Preview {
         };
         let acquire_ms = t0.elapsed().as_secs_f64() * 1e3;
         self.pipeline.settings.fill = if self.state.diminish {
-            self.fill
+            setup::fill_named(self.state.fill_name()).unwrap_or(self.fill)
         } else {
             Fill::None
         };
+        self.pipeline.set_shadows(self.state.shadows);
         let anim_time_s = self.state.anim_frame as f32 / self.fps;
         let key_time_s = want.key_frame as f32 / self.fps;
         // The tracker policy (`pa_video::source`): reset before each still, kept across video
@@ -788,9 +802,9 @@ pub fn run(args: Args) -> Result<()> {
     let overlays =
         state::Overlays::parse(&args.overlays).map_err(|e| anyhow::anyhow!("--overlays: {e}"))?;
     let setup = match (&args.shot, &args.input) {
-        (None, None) => setup::setup_scene(args.size.as_deref())?,
+        (None, None) => setup::setup_scene(args.size.as_deref(), &args.diminish)?,
         (Some(shot), Some(input)) => {
-            setup::setup_shot(shot, input, args.camera_size.as_deref())?
+            setup::setup_shot(shot, input, args.camera_size.as_deref(), &args.diminish)?
         }
         (Some(_), None) => bail!(
             "a shot needs --input FOLDER, VIDEO or camera:/dev/videoN; run `propsalive preview` with no arguments for the built-in scene"

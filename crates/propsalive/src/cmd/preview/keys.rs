@@ -33,6 +33,8 @@ pub fn action_for(key: &Key, shift: bool) -> Option<Action> {
                 ']' | '}' => Some(Action::Scrub(step)),
                 'k' => Some(Action::NextKeyPose),
                 'd' => Some(Action::ToggleDiminish),
+                'f' => Some(Action::CycleFill),
+                's' => Some(Action::ToggleShadows),
                 'a' => Some(Action::ToggleAxes),
                 'm' => Some(Action::ToggleMasks),
                 'o' => Some(Action::ToggleOnion),
@@ -79,6 +81,8 @@ mod tests {
         for (k, a) in [
             ("k", Action::NextKeyPose),
             ("d", Action::ToggleDiminish),
+            ("f", Action::CycleFill),
+            ("s", Action::ToggleShadows),
             ("a", Action::ToggleAxes),
             ("m", Action::ToggleMasks),
             ("o", Action::ToggleOnion),

@@ -4,6 +4,9 @@
 
 use std::path::Path;
 
+use pa_pipeline::ar::Fill;
+use pa_pipeline::shot_diminish::{DiminishConfig, FillName};
+
 use anyhow::{bail, Context, Result};
 use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_pipeline::shot::Shot;
@@ -13,7 +16,43 @@ use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use super::source::{CameraSource, FrameSource, SceneSource, StillsSource, VideoSource};
 use super::state::{KeyPose, PreviewState};
+use crate::cmd::run::diminish::{self, DiminishArgs};
 use crate::cmd::run::{self, InputSpec};
+
+/// The pipeline's fill of a name of the preview's fill list (`None`: not in this build).
+pub fn fill_named(name: &str) -> Option<Fill> {
+    name.parse::<FillName>().ok().and_then(FillName::to_fill)
+}
+
+/// The fills `F` cycles through: those this build has, the plate only with a plate; the
+/// resolved fill first in use.
+fn fills(d: &DiminishConfig, has_plate: bool) -> (Vec<String>, usize) {
+    let names: Vec<String> = FillName::ALL
+        .into_iter()
+        .filter(|f| f.to_fill().is_some() && *f != FillName::None)
+        .filter(|f| has_plate || *f != FillName::Plate)
+        .map(|f| f.name().to_string())
+        .collect();
+    let current = names.iter().position(|n| n == d.fill.name()).unwrap_or(0);
+    (names, current)
+}
+
+/// Applies the resolved settings to the pipeline and the state.
+fn apply(
+    pipeline: &mut ArPipeline,
+    state: PreviewState,
+    d: &DiminishConfig,
+    plate: Option<(pa_diminish::ImageRgba8, glam::Mat4)>,
+    has_plate: bool,
+) -> Result<PreviewState> {
+    diminish::apply(pipeline, d, plate)?;
+    let (names, current) = fills(d, has_plate);
+    let mut state = state.with_fills(names, current);
+    state.shadows = d.shadows;
+    // `fill = "none"` starts with diminishing off (D turns it on with the first fill).
+    state.diminish = d.fill != FillName::None;
+    Ok(state)
+}
 
 /// Everything the preview runs, before the window opens.
 pub struct Setup {
@@ -38,8 +77,17 @@ fn last_frame(model: &pa_model::Model, animation: usize, fps: f32) -> u32 {
 }
 
 /// The built-in scene: generated on the fly, key poses at frames 0 and 24.
-pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
+pub fn setup_scene(size: Option<&str>, flags: &DiminishArgs) -> Result<Setup> {
     let (w, h) = crate::cmd::parse_size(size.unwrap_or("640x360"))?;
+    let overrides = flags.overrides();
+    if overrides.clean_plate.is_some() || overrides.plate_frames.is_some() {
+        bail!("--clean-plate and --plate-frames are for a shot: the built-in scene has its own clean plate");
+    }
+    let d = pa_pipeline::shot_diminish::resolve(
+        &Default::default(),
+        &overrides,
+        Path::new("the built-in scene"),
+    )?;
     let mut renderer = Renderer::new().context("starting the renderer")?;
     outln!("renderer: {}", renderer.adapter_info());
     let spec = pa_scene::SceneSpec {
@@ -52,7 +100,7 @@ pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
     };
     let fps = spec.fps;
     let scene = pa_scene::Scene::new(spec, &mut renderer).map_err(anyhow::Error::msg)?;
-    let pipeline = pa_scene::eval::pipeline_for(&scene, &mut renderer, ArSettings::ours())
+    let mut pipeline = pa_scene::eval::pipeline_for(&scene, &mut renderer, ArSettings::ours())
         .map_err(anyhow::Error::msg)?;
     let last = last_frame(&scene.model, 0, fps);
     let keys = scene
@@ -72,11 +120,19 @@ pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
         .map(|t| t.size_m as f32)
         .fold(0.0, f32::max)
         * 1.5;
+    // The scene's pipeline has the set's clean plate.
+    let state = apply(
+        &mut pipeline,
+        PreviewState::new(last, keys, 0),
+        &d,
+        None,
+        true,
+    )?;
     Ok(Setup {
         renderer,
         pipeline,
         source: Box::new(SceneSource::new(scene)),
-        state: PreviewState::new(last, keys, 0),
+        state,
         fps,
         axes_len_m,
         frame_size: (w, h),
@@ -85,8 +141,15 @@ pub fn setup_scene(size: Option<&str>) -> Result<Setup> {
 
 /// A shot and its input: a folder of stills, a video file (frame i = animation frame i, as
 /// `propsalive run` pairs them) or a live camera.
-pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> Result<Setup> {
+pub fn setup_shot(
+    shot_path: &Path,
+    input: &Path,
+    camera_size: Option<&str>,
+    flags: &DiminishArgs,
+) -> Result<Setup> {
     let shot = Shot::load(shot_path)?;
+    let d = flags.resolve(&shot, shot_path)?;
+    let mut first_still = None;
     let spec = run::parse_input(input)?;
     if camera_size.is_some() && !matches!(spec, InputSpec::Camera(_)) {
         bail!("--camera-size is for a camera input (--input camera:/dev/videoN)");
@@ -96,6 +159,7 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
         match spec {
             InputSpec::Folder(dir) => {
                 let (stills, _) = crate::cmd::track::list_frames(&dir)?;
+                first_still = stills.first().cloned();
                 let (first, (width, height)) = stills
                     .iter()
                     .find_map(|p| {
@@ -167,6 +231,7 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
             ..Default::default()
         }
     };
+    let board_for_plate = board.clone();
     let tracker = Tracker::new(
         camera,
         TrackTarget::Board(board),
@@ -174,7 +239,18 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
         tracker_cfg,
     )?;
     let last = last_frame(&model, animation, shot.fps);
-    let pipeline = ArPipeline::new(
+    let plate = match diminish::plate_file(&d, first_still.as_deref())? {
+        Some(p) => Some(diminish::load_plate(
+            &p,
+            camera,
+            &board_for_plate,
+            width,
+            height,
+        )?),
+        None => None,
+    };
+    let has_plate = plate.is_some();
+    let mut pipeline = ArPipeline::new(
         &mut renderer,
         model,
         animation,
@@ -191,11 +267,18 @@ pub fn setup_shot(shot_path: &Path, input: &Path, camera_size: Option<&str>) -> 
             frame: k.frame,
         })
         .collect();
+    let state = apply(
+        &mut pipeline,
+        PreviewState::new(last, keys, shot.present_key_index()),
+        &d,
+        plate,
+        has_plate,
+    )?;
     Ok(Setup {
         renderer,
         pipeline,
         source,
-        state: PreviewState::new(last, keys, shot.present_key_index()),
+        state,
         fps: shot.fps,
         axes_len_m,
         frame_size: (width, height),

@@ -74,6 +74,8 @@ use pa_take::{
 use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 use pa_video::{Fps, Mp4Writer};
 
+pub mod diminish;
+
 #[derive(clap::Args)]
 pub struct Args {
     /// The shot file (TOML: model, animation, fps, key poses, camera, marker, placement).
@@ -115,6 +117,9 @@ pub struct Args {
     /// calibration size, else 1280x720]. The camera's answer is what is used.
     #[arg(long, value_name = "WxH")]
     pub camera_size: Option<String>,
+    /// How the real prop is removed (overriding the shot's `[diminish]`).
+    #[command(flatten)]
+    pub diminish: diminish::DiminishArgs,
 }
 
 // --- input ---------------------------------------------------------------------------------
@@ -164,6 +169,12 @@ struct Config {
     key_time_s: f32,
     shot_hash: String,
     passes: PassSet,
+    /// The shot's `[diminish]` with the flags over it.
+    diminish: pa_pipeline::shot_diminish::DiminishConfig,
+    /// The clean plate still, if any.
+    plate_file: Option<PathBuf>,
+    /// The first stills that are plate (passed through untouched).
+    plate_frames: usize,
 }
 
 fn resolve(args: &Args) -> Result<(Config, InputSource)> {
@@ -181,6 +192,8 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
     }
     let passes = PassSet::parse(&args.passes)?;
     let shot = Shot::load(&args.shot)?;
+    let dim = args.diminish.resolve(&shot, &args.shot)?;
+    let mut first_still = None;
     let shot_text = pa_io::read_regular(&args.shot, MAX_SHOT_BYTES, "a shot file")?;
     let input = parse_input(&args.input)?;
     match &input {
@@ -203,6 +216,7 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
     let resolved = match input {
         InputSpec::Folder(dir) => {
             let (stills, _) = super::track::list_frames(&dir)?;
+            first_still = stills.first().cloned();
             ResolvedInput::stills(&dir, stills)?
         }
         InputSpec::Video(path) => {
@@ -255,8 +269,19 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         fps: shot.fps,
         key_name: key.name.clone(),
         key_time_s: key.frame as f32 / shot.fps,
-        shot_hash: hash_hex(&shot_text),
+        // Flags that change the diminish stage change the take's settings too (the shot's
+        // own [diminish] is in its text); without them the hash is the shot's as before.
+        shot_hash: if args.diminish.overrides().is_empty() {
+            hash_hex(&shot_text)
+        } else {
+            let mut text = shot_text.clone();
+            text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
+            hash_hex(&text)
+        },
         passes,
+        plate_file: diminish::plate_file(&dim, first_still.as_deref())?,
+        plate_frames: diminish::plate_frames(&dim),
+        diminish: dim,
     };
     Ok((cfg, source))
 }
@@ -286,6 +311,7 @@ trait FrameProcessor {
         width: u32,
         height: u32,
         anim_frame: u32,
+        index: usize,
     ) -> Result<Processed>;
 }
 
@@ -298,8 +324,25 @@ struct PipelineProcessor<'a> {
 }
 
 impl FrameProcessor for PipelineProcessor<'_> {
-    fn process(&mut self, rgba8: &[u8], w: u32, h: u32, anim_frame: u32) -> Result<Processed> {
+    fn process(
+        &mut self,
+        rgba8: &[u8],
+        w: u32,
+        h: u32,
+        anim_frame: u32,
+        index: usize,
+    ) -> Result<Processed> {
         let cfg = self.cfg;
+        // A plate still of the take (`plate_frames`) goes out untouched.
+        if index < cfg.plate_frames {
+            return Ok(Processed {
+                rgba8: rgba8.to_vec(),
+                pose: None,
+                reprojection_px: None,
+                timings: StageTimings::default(),
+                passes: None,
+            });
+        }
         if self.started.is_none() {
             let mut renderer = Renderer::new().context("starting the renderer")?;
             let tracker_cfg = TrackerConfig {
@@ -326,6 +369,13 @@ impl FrameProcessor for PipelineProcessor<'_> {
                 None,
                 ArSettings::ours(),
             )?;
+            let plate = match &cfg.plate_file {
+                Some(p) => Some(diminish::load_plate(
+                    p, cfg.camera, &cfg.board, cfg.width, cfg.height,
+                )?),
+                None => None,
+            };
+            diminish::apply(&mut pipeline, &cfg.diminish, plate)?;
             pipeline.set_keep_passes(self.keep_passes);
             self.started = Some((renderer, tracker, pipeline));
         }
@@ -334,6 +384,10 @@ impl FrameProcessor for PipelineProcessor<'_> {
         };
         let t0 = Instant::now();
         tracker.reset();
+        // Every still on its own: the shadows' light is estimated again from each.
+        if pipeline.shadows() {
+            pipeline.set_shadow_light(None);
+        }
         let gray = pa_pipeline::ar::gray_from_rgba(rgba8, w, h)?;
         let t_s = anim_frame as f64 / cfg.fps as f64;
         let out = tracker.update(&gray, t_s)?;
@@ -576,7 +630,7 @@ fn run_take(
         if let Some(img) = img {
             let rgba = img.to_rgba8();
             let (w, h) = (take.width, take.height);
-            let p = processor.process(rgba.as_raw(), w, h, anim_frame)?;
+            let p = processor.process(rgba.as_raw(), w, h, anim_frame, i)?;
             let t1 = Instant::now();
             files = take.encode_frame(i, &p.rgba8, &img, rgba.as_raw(), p.passes, &mut entry)?;
             let timings = p.timings;

@@ -160,7 +160,14 @@ struct FakeProcessor {
 }
 
 impl FrameProcessor for FakeProcessor {
-    fn process(&mut self, rgba8: &[u8], w: u32, h: u32, anim_frame: u32) -> Result<Processed> {
+    fn process(
+        &mut self,
+        rgba8: &[u8],
+        w: u32,
+        h: u32,
+        anim_frame: u32,
+        _index: usize,
+    ) -> Result<Processed> {
         self.calls += 1;
         if let Some((n, flag)) = self.stop_after {
             if self.calls >= n {

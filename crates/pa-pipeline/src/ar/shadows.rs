@@ -1,0 +1,186 @@
+//! Shadows in the frame pipeline (off unless [`ArPipeline::set_shadows`]): the key props'
+//! cast shadow lifted out of the frame before the fill, and the in-between twins' shadow cast
+//! onto the diminished background before the composite, with the same light, softness and
+//! darkening. The geometry is [`crate::shadow`]'s, the image math `pa_diminish::shadow`'s.
+//!
+//! The light is estimated from the frame ([`crate::shadow::estimate_light`]) once, on the
+//! first tracked frame that shows a measurable shadow (retried every
+//! [`RETRY_FRAMES`] frames until then), and kept: the set's light does not move. The
+//! darkening is measured again on every frame where the key shadow is in view (across its
+//! outline, [`crate::shadow::measure_outline`], else by medians); a frame whose
+//! predicted shadow region is not measurably darker than its surroundings
+//! ([`crate::shadow::MAX_SHADOW_LUMINANCE`]) lifts nothing.
+
+use glam::Vec3;
+use pa_diminish::shadow::{cast_shadow, lift_shadow, measure_shadow};
+use pa_diminish::{dilate_in_bbox, DilateShape, ImageRgba8, Rect};
+
+use super::texture::Textured;
+use super::{mask_from_bools, ArError, ArPipeline, FrameTimes, FrameView};
+use crate::shadow::{estimate_light, measure_outline, posed_triangles, soft_matte, ShadowLight};
+
+/// Frames between two tries at estimating the light while none is known.
+pub const RETRY_FRAMES: u32 = 12;
+
+/// Pixels around the key silhouette that are not table (its anti-aliased edge, the contact).
+const EXCLUDE_GROW_PX: u32 = 3;
+
+/// What the pipeline keeps for shadows.
+#[derive(Debug, Clone, Default)]
+pub(super) struct ShadowState {
+    enabled: bool,
+    light: Option<ShadowLight>,
+    /// Given by the caller: never re-estimated.
+    fixed: bool,
+    /// Frames left before the next estimation try.
+    retry_in: u32,
+}
+
+/// The props posed at a frame's two times, as triangles in the marker frame.
+pub(super) struct ShadowTriangles {
+    key: Vec<[Vec3; 3]>,
+    anim: Vec<[Vec3; 3]>,
+}
+
+impl ArPipeline {
+    /// Turns shadows on or off: with them, the key props' cast shadow is lifted from the
+    /// frame and the twins cast theirs (see the module docs). Off by default.
+    pub fn set_shadows(&mut self, on: bool) {
+        self.shadows.enabled = on;
+    }
+
+    /// Whether shadows are on.
+    pub fn shadows(&self) -> bool {
+        self.shadows.enabled
+    }
+
+    /// The light the shadows use, once estimated (or given).
+    pub fn shadow_light(&self) -> Option<ShadowLight> {
+        self.shadows.light
+    }
+
+    /// Gives the light (never re-estimated), or `None` to estimate it from the next frames.
+    pub fn set_shadow_light(&mut self, light: Option<ShadowLight>) {
+        self.shadows.light = light;
+        self.shadows.fixed = light.is_some();
+        self.shadows.retry_in = 0;
+    }
+
+    /// The props' triangles at the frame's key and in-between times, when shadows are on.
+    pub(super) fn shadow_triangles(&self, times: FrameTimes) -> Option<ShadowTriangles> {
+        if !self.shadows.enabled {
+            return None;
+        }
+        let (mut key, mut anim) = (Vec::new(), Vec::new());
+        for p in &self.props {
+            let (anim_pose, key_pose) = p.poses(times);
+            key.extend(posed_triangles(&p.model, &key_pose, p.marker_from_prop));
+            anim.extend(posed_triangles(&p.model, &anim_pose, p.marker_from_prop));
+        }
+        Some(ShadowTriangles { key, anim })
+    }
+
+    /// The frame with the key props' shadow lifted, or `None` when there is nothing to lift
+    /// (no light yet, the shadow out of view or not measurably darker).
+    pub(super) fn lift_key_shadow(
+        &mut self,
+        view: &FrameView<'_>,
+        textured: &Textured,
+        tris: &ShadowTriangles,
+    ) -> Result<Option<Vec<u8>>, ArError> {
+        let FrameView {
+            rgba8,
+            width,
+            height,
+            camera_model,
+            camera_from_marker,
+            ..
+        } = *view;
+        let Some((x0, y0, x1, y1)) = textured.key_bbox else {
+            return Ok(None);
+        };
+        let frame = ImageRgba8::new(width, height, rgba8.to_vec())?;
+        let mut exclude = mask_from_bools(width, height, &textured.key_mask)?;
+        let bbox = Rect::from_inclusive(x0 as u32, y0 as u32, x1 as u32, y1 as u32);
+        dilate_in_bbox(&mut exclude, bbox, EXCLUDE_GROW_PX, DilateShape::Disc);
+        let state = &mut self.shadows;
+        if state.light.is_none() && !state.fixed {
+            if state.retry_in == 0 {
+                state.light = estimate_light(
+                    &frame,
+                    &tris.key,
+                    &camera_model,
+                    camera_from_marker,
+                    &exclude,
+                )?;
+                state.retry_in = RETRY_FRAMES;
+            } else {
+                state.retry_in -= 1;
+            }
+        }
+        let Some(light) = state.light.as_mut() else {
+            return Ok(None);
+        };
+        let Some(matte) = soft_matte(
+            &tris.key,
+            light,
+            &camera_model,
+            camera_from_marker,
+            width,
+            height,
+        )?
+        else {
+            return Ok(None);
+        };
+        // This frame's darkening where it can be measured; nothing lifted where the predicted
+        // region is not darker than the table around it.
+        let measured = measure_outline(
+            &frame,
+            &tris.key,
+            light,
+            &camera_model,
+            camera_from_marker,
+            &exclude,
+        )?;
+        let measured = match measured {
+            Some(r) => Some(r),
+            None => measure_shadow(&frame, &matte, Some(&exclude))?,
+        };
+        let ratio = match measured {
+            Some(r) if r.luminance() <= crate::shadow::MAX_SHADOW_LUMINANCE => {
+                light.ratio_rgb = r.rgb;
+                r.rgb
+            }
+            Some(_) => return Ok(None),
+            None => light.ratio_rgb,
+        };
+        let mut frame = frame;
+        lift_shadow(&mut frame, &matte, ratio)?;
+        Ok(Some(frame.into_vec()))
+    }
+
+    /// Casts the in-between twins' shadow onto `background` with the light of the key
+    /// shadow (nothing until a light is known).
+    pub(super) fn cast_twin_shadow(
+        &self,
+        background: &mut ImageRgba8,
+        view: &FrameView<'_>,
+        tris: &ShadowTriangles,
+    ) -> Result<(), ArError> {
+        let Some(light) = self.shadows.light else {
+            return Ok(());
+        };
+        let (width, height) = background.size();
+        if let Some(matte) = soft_matte(
+            &tris.anim,
+            &light,
+            &view.camera_model,
+            view.camera_from_marker,
+            width,
+            height,
+        )? {
+            cast_shadow(background, &matte, light.ratio_rgb)?;
+        }
+        Ok(())
+    }
+}

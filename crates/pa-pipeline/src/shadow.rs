@@ -1,0 +1,320 @@
+//! Cast shadows on the table plane: the geometry (a posed mesh projected along the light onto
+//! the marker plane z = 0, then into the frame) and the light, estimated from the frame.
+//!
+//! The marker frame has +Z into the table (`pa_track`), so the table is z = 0, up is -Z and a
+//! light above the table has a direction *toward the light* with z < 0. A point `p` casts its
+//! shadow at `p - l p.z / l.z` (the ray from `p` away from the light meets z = 0 there).
+//!
+//! The light ([`estimate_light`]): the key prop's geometry is known, so each candidate
+//! direction predicts a shadow region on the table; the candidate whose region is the most
+//! darkened (median colour inside over the lit ring around it, [`pa_diminish::shadow`]) in
+//! the sense that its darkening explains the most of the observed luminance, wins,
+//! on a coarse grid of directions then a finer one around the best, and only when the
+//! darkening is measurable ([`MAX_SHADOW_LUMINANCE`]). The softness is then the Gaussian
+//! width that best explains the observed penumbra. Pixel image math stays in
+//! `pa-diminish`; this module knows meshes and cameras.
+
+use glam::{Mat4, Vec3};
+use pa_camera::CameraModel;
+use pa_diminish::shadow::{
+    explained_darkening, fit_softness, lit_luminance, measure_shadow, outline_darkening,
+    ShadowMatte, ShadowRatio,
+};
+use pa_diminish::{DiminishError, ImageRgba8, Mask};
+use pa_model::{anim::Pose, Model};
+
+/// The set's key light as the shadows see it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowLight {
+    /// Unit direction toward the light, marker frame (z < 0: above the table).
+    pub toward_light: Vec3,
+    /// Gaussian standard deviation of the penumbra, pixels.
+    pub softness_px: f32,
+    /// Shadowed over lit, linear RGB.
+    pub ratio_rgb: [f32; 3],
+}
+
+/// A shadow whose luminance ratio is above this is not measurably darker than its
+/// surroundings: no light is estimated from it.
+pub const MAX_SHADOW_LUMINANCE: f32 = 0.7;
+
+/// Extra pixels around a predicted shadow where the lit ring is measured.
+pub const RING_PX: u32 = 12;
+
+/// How far inside and outside an outline [`measure_outline`] compares beyond the penumbra.
+const OUTLINE_EXTRA_PX: f32 = 1.0;
+
+/// Fewest outline pairs in view for [`measure_outline`].
+pub const MIN_OUTLINE_PAIRS: usize = 16;
+
+/// Softness candidates (Gaussian deviation, pixels) for [`estimate_light`].
+pub const SOFTNESS_CANDIDATES_PX: [f32; 7] = [0.75, 1.5, 2.5, 4.0, 6.0, 9.0, 13.0];
+
+/// The unit direction toward a light at `azimuth_deg` (about the table's normal, from the
+/// marker's +X toward +Y) and `elevation_deg` above the table.
+pub fn toward_light(azimuth_deg: f32, elevation_deg: f32) -> Vec3 {
+    let (a, e) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
+    Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()).normalize()
+}
+
+/// Where `p` (marker frame) casts its shadow on the table along `toward_light`; `p` itself
+/// when the light is parallel to the table (no shadow can be cast).
+pub fn onto_table(p: Vec3, toward_light: Vec3) -> Vec3 {
+    if toward_light.z.abs() < 1e-6 {
+        return p;
+    }
+    p - toward_light * (p.z / toward_light.z)
+}
+
+/// The triangles of a model posed at `pose`, placed by `marker_from_prop` (marker frame),
+/// each primitive as drawn.
+pub fn posed_triangles(model: &Model, pose: &Pose, marker_from_prop: Mat4) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    for p in pa_model::skin::pose_drawn_meshes(model, pose) {
+        let Some(prim) = model
+            .meshes
+            .get(p.mesh)
+            .and_then(|m| m.primitives.get(p.primitive))
+            .map(pa_model::Primitive::drawn)
+        else {
+            continue;
+        };
+        let at = |i: u32| {
+            p.positions
+                .get(i as usize)
+                .map(|v| marker_from_prop.transform_point3(*v))
+        };
+        for t in prim.indices.chunks_exact(3) {
+            if let (Some(a), Some(b), Some(c)) = (at(t[0]), at(t[1]), at(t[2])) {
+                out.push([a, b, c]);
+            }
+        }
+    }
+    out
+}
+
+/// The shadow of `triangles` (marker frame) on the table along `toward_light`, as
+/// pixel-space triangles of the frame seen by `camera` at `camera_from_marker` (distortion
+/// included). A triangle with a corner behind the camera is dropped.
+pub fn shadow_pixel_triangles(
+    triangles: &[[Vec3; 3]],
+    toward_light: Vec3,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+) -> Vec<[[f32; 2]; 3]> {
+    let m = camera_from_marker.as_dmat4();
+    let px = |p: Vec3| {
+        let q = m.transform_point3(onto_table(p, toward_light).as_dvec3());
+        camera
+            .pixel_from_camera(q)
+            .map(|v| [v.x as f32, v.y as f32])
+    };
+    triangles
+        .iter()
+        .filter_map(|t| Some([px(t[0])?, px(t[1])?, px(t[2])?]))
+        .collect()
+}
+
+/// The hard matte of the shadow of `triangles` in a `width x height` frame, with a margin of
+/// `margin_px` for softening and the lit ring; `None` when it misses the frame.
+pub fn hard_matte(
+    triangles: &[[Vec3; 3]],
+    toward_light: Vec3,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    margin_px: u32,
+    width: u32,
+    height: u32,
+) -> Option<ShadowMatte> {
+    let px = shadow_pixel_triangles(triangles, toward_light, camera, camera_from_marker);
+    ShadowMatte::from_triangles(&px, margin_px, width, height)
+}
+
+/// The soft matte of the shadow of `triangles` under `light` (the hard matte blurred by its
+/// softness).
+pub fn soft_matte(
+    triangles: &[[Vec3; 3]],
+    light: &ShadowLight,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    width: u32,
+    height: u32,
+) -> Result<Option<ShadowMatte>, DiminishError> {
+    match hard_matte(
+        triangles,
+        light.toward_light,
+        camera,
+        camera_from_marker,
+        RING_PX,
+        width,
+        height,
+    ) {
+        Some(m) => Ok(Some(m.soften(light.softness_px)?)),
+        None => Ok(None),
+    }
+}
+
+/// Scores a direction: the darkening its predicted shadow explains
+/// ([`explained_darkening`]: higher = better; a region that is only part of the real shadow
+/// explains less of it, one that spills onto lit table is penalised there), with the ratio;
+/// `None` when too little of it is visible to measure.
+fn score(
+    frame: &ImageRgba8,
+    key_triangles: &[[Vec3; 3]],
+    dir: Vec3,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &Mask,
+) -> Result<Option<(f32, ShadowRatio)>, DiminishError> {
+    let (w, h) = frame.size();
+    let Some(m) = hard_matte(
+        key_triangles,
+        dir,
+        camera,
+        camera_from_marker,
+        RING_PX,
+        w,
+        h,
+    ) else {
+        return Ok(None);
+    };
+    // A shadow mostly hidden by the prop says nothing: at least a quarter of it in view.
+    let Some(r) = measure_shadow(frame, &m, Some(exclude))? else {
+        return Ok(None);
+    };
+    if (r.shadow_samples as f64) < 0.25 * m.area() {
+        return Ok(None);
+    }
+    let Some(lit) = lit_luminance(frame, &m, Some(exclude))? else {
+        return Ok(None);
+    };
+    let e = explained_darkening(frame, &m, &r, lit, Some(exclude))?;
+    Ok(Some((e as f32, r)))
+}
+
+/// The darkening of the shadow of `triangles` under `light` in `frame`, measured across its
+/// outline just past the penumbra (three deviations of the softness and a pixel); `None`
+/// when the outline is not in view. Pairs straddle one surface, so a shadow across a sheet's
+/// edge measures as well as one on a single surface.
+pub fn measure_outline(
+    frame: &ImageRgba8,
+    triangles: &[[Vec3; 3]],
+    light: &ShadowLight,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &Mask,
+) -> Result<Option<ShadowRatio>, DiminishError> {
+    let (w, h) = frame.size();
+    let step = 3.0 * light.softness_px + OUTLINE_EXTRA_PX;
+    let margin = RING_PX + step.ceil() as u32;
+    let Some(m) = hard_matte(
+        triangles,
+        light.toward_light,
+        camera,
+        camera_from_marker,
+        margin,
+        w,
+        h,
+    ) else {
+        return Ok(None);
+    };
+    Ok(outline_darkening(frame, &m, step, Some(exclude))?
+        .filter(|o| o.ratio.shadow_samples >= MIN_OUTLINE_PAIRS)
+        .map(|o| o.ratio))
+}
+
+/// Estimates the key light from the darkening on the table around the key prop: see the
+/// module docs. `key_triangles` is the key pose in the marker frame, `exclude` the pixels
+/// that are not table (the key prop, dilated). `Ok(None)` when no direction predicts a
+/// measurably darker region.
+pub fn estimate_light(
+    frame: &ImageRgba8,
+    key_triangles: &[[Vec3; 3]],
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &Mask,
+) -> Result<Option<ShadowLight>, DiminishError> {
+    let score_of = |az: f32, el: f32| -> Result<Option<f32>, DiminishError> {
+        let dir = toward_light(az, el);
+        Ok(score(
+            frame,
+            key_triangles,
+            dir,
+            camera,
+            camera_from_marker,
+            exclude,
+        )?
+        .filter(|s| s.1.luminance() <= MAX_SHADOW_LUMINANCE)
+        .map(|s| s.0))
+    };
+    let mut best: Option<(f32, f32, f32)> = None;
+    let keep = |best: &mut Option<(f32, f32, f32)>, s: Option<f32>, az: f32, el: f32| {
+        if let Some(s) = s {
+            if best.is_none_or(|b| s > b.0) {
+                *best = Some((s, az, el));
+            }
+        }
+    };
+    // Coarse: every 15 degrees of azimuth, 20..80 degrees of elevation.
+    for ei in 0..7 {
+        for ai in 0..24 {
+            let (az, el) = (ai as f32 * 15.0, 20.0 + ei as f32 * 10.0);
+            keep(&mut best, score_of(az, el)?, az, el);
+        }
+    }
+    // Fine: around the best, twice, at a third of the step each time.
+    for (da, de) in [(5.0f32, 10.0 / 3.0), (5.0 / 3.0, 10.0 / 9.0)] {
+        let Some((_, a0, e0)) = best else { break };
+        for i in -2..=2 {
+            for j in -2..=2 {
+                let (az, el) = (a0 + i as f32 * da, (e0 + j as f32 * de).clamp(5.0, 89.0));
+                keep(&mut best, score_of(az, el)?, az, el);
+            }
+        }
+    }
+    let Some((_, az, el)) = best else {
+        return Ok(None);
+    };
+    let dir = toward_light(az, el);
+    let (w, h) = frame.size();
+    let margin = RING_PX + (3.0 * SOFTNESS_CANDIDATES_PX[6]).ceil() as u32;
+    let Some(hard) = hard_matte(key_triangles, dir, camera, camera_from_marker, margin, w, h)
+    else {
+        return Ok(None);
+    };
+    let Some((softness_px, ratio)) =
+        fit_softness(frame, &hard, &SOFTNESS_CANDIDATES_PX, Some(exclude))?
+    else {
+        return Ok(None);
+    };
+    let mut light = ShadowLight {
+        toward_light: dir,
+        softness_px,
+        ratio_rgb: ratio.rgb,
+    };
+    // The ratio across the outline where enough of it is in view: each pair compares one
+    // surface, where the medians compare the umbra's surfaces with the ring's. An outline
+    // that shows no darkening vetoes the medians (dark print or wood beside the region
+    // posing as a shadow: a false light would cast a twin's shadow on a shadowless set).
+    if let Some(r) = measure_outline(
+        frame,
+        key_triangles,
+        &light,
+        camera,
+        camera_from_marker,
+        exclude,
+    )? {
+        if r.luminance() > MAX_SHADOW_LUMINANCE {
+            return Ok(None);
+        }
+        light.ratio_rgb = r.rgb;
+    }
+    // Not measurably darker after all (the softened region's ratio): no light.
+    let r = light.ratio_rgb;
+    let luminance = 0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2];
+    Ok((luminance <= MAX_SHADOW_LUMINANCE).then_some(light))
+}
+
+#[cfg(test)]
+#[path = "shadow_tests.rs"]
+mod tests;
