@@ -185,6 +185,8 @@ pub fn run(args: Args) -> Result<()> {
                     revealed_ssim: None,
                     rot_err_deg_median: median(v.iter().copied()),
                     texture_diminish_ms_median: None,
+                    flicker_ours: None,
+                    flicker_truth: None,
                     frames: v.iter().flatten().count(),
                 });
             }

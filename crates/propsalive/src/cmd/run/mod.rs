@@ -341,6 +341,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
                 reprojection_px: None,
                 timings: StageTimings::default(),
                 passes: None,
+                used_ids: None,
             });
         }
         if self.started.is_none() {
