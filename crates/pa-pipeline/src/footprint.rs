@@ -176,6 +176,31 @@ pub fn area(poly: &[DVec2]) -> f64 {
     (a2 * 0.5).abs()
 }
 
+/// The ids of `board`'s tags whose black square overlaps the footprint (the outline's
+/// bounding box, in the marker frame): tags the key prop stands on.
+pub fn covered_tags(footprint: &Footprint, board: &pa_track::Board) -> Vec<u32> {
+    let o = &footprint.outline_m;
+    let (lo, hi) = o.iter().fold(
+        (
+            glam::DVec2::splat(f64::INFINITY),
+            glam::DVec2::splat(f64::NEG_INFINITY),
+        ),
+        |(l, h), p| (l.min(*p), h.max(*p)),
+    );
+    board
+        .tags
+        .iter()
+        .filter(|t| {
+            let r = t.size_m / 2.0;
+            t.center_m.x + r > lo.x
+                && t.center_m.x - r < hi.x
+                && t.center_m.y + r > lo.y
+                && t.center_m.y - r < hi.y
+        })
+        .map(|t| t.id)
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -264,6 +289,12 @@ mod tests {
             (placed.yaw_deg, placed.scale, placed.upright),
             (90.0, 2.0, true)
         );
+        // The contact, 60 mm along x and 80 mm along y (yawed), on a 3x3 board of 45 mm tags
+        // 56.25 mm apart reaches the middle column's top and bottom tags (their inner edges at
+        // +-33.75 mm), not the side columns.
+        let board = pa_track::Board::grid(pa_track::TagFamily::Tag36h11, 3, 3, 0.045, 0.01125, 0)
+            .expect("grid");
+        assert_eq!(covered_tags(&fp, &board), vec![1, 4, 7]);
     }
 
     /// A model of one box (12 triangles), through glTF JSON.

@@ -47,6 +47,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 pub const MAX_SHOT_BYTES: u64 = 4 << 20;
 
 mod keys;
+pub mod template;
 
 pub use keys::{KNOWN_KEYS, SHOT_FORMAT};
 

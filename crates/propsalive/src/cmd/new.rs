@@ -16,7 +16,8 @@ use anyhow::{bail, Context, Result};
 use pa_model::Model;
 use pa_overlay::sheet::SheetScale;
 use pa_pipeline::footprint;
-use pa_pipeline::shot::{Placement, Shot, SHOT_FORMAT};
+use pa_pipeline::shot::template::{NewCamera, NewShot};
+use pa_pipeline::shot::{Placement, Shot};
 use pa_track::{Board, TagFamily};
 
 #[derive(clap::Args)]
@@ -87,21 +88,6 @@ fn parse_key_frames(s: &str) -> Result<Vec<u32>> {
     Ok(frames)
 }
 
-/// A TOML basic string.
-fn toml_string(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
-}
-
 /// `path` relative to the folder `base` (both absolute and normalised).
 fn relative_to(path: &Path, base: &Path) -> PathBuf {
     let p: Vec<Component> = path.components().collect();
@@ -133,22 +119,7 @@ fn shot_relative(file: &Path, shot_dir: &Path, flag: &str) -> Result<String> {
     Ok(text.replace('\\', "/"))
 }
 
-/// What the shot file says, before it is written out as commented text.
-struct Plan {
-    model: String,
-    animation: String,
-    fps: f32,
-    keys: Vec<(String, u32)>,
-    camera: String,
-    board: Board,
-    rows: u32,
-    cols: u32,
-    gap_mm: f64,
-    placement: Placement,
-    footprint: footprint::Footprint,
-}
-
-fn plan(args: &Args, shot_dir: &Path) -> Result<(Plan, Model)> {
+fn plan(args: &Args, shot_dir: &Path) -> Result<(NewShot, footprint::Footprint, Model)> {
     if !(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 1000.0) {
         bail!("--fps must be in (0, 1000], got {}", args.fps);
     }
@@ -199,12 +170,9 @@ fn plan(args: &Args, shot_dir: &Path) -> Result<(Plan, Model)> {
             pa_io::check_regular(c).with_context(|| format!("--calib {}", c.display()))?;
             pa_camera::calib::load_calibration(c)
                 .with_context(|| format!("--calib {}", c.display()))?;
-            format!(
-                "calibration = {}",
-                toml_string(&shot_relative(c, shot_dir, "--calib")?)
-            )
+            NewCamera::Calibration(shot_relative(c, shot_dir, "--calib")?)
         }
-        (None, fov) => format!("fov_y_deg = {}", num(fov.unwrap_or(50.0))),
+        (None, fov) => NewCamera::FovDeg(fov.unwrap_or(50.0)),
     };
     let key_time = frames[0] as f32 / args.fps;
     let start = Placement {
@@ -214,7 +182,7 @@ fn plan(args: &Args, shot_dir: &Path) -> Result<(Plan, Model)> {
     let (placement, footprint) = footprint::rest_on_table(&model, Some(anim), key_time, &start)
         .with_context(|| format!("{}: the model has no vertices", args.model.display()))?;
     Ok((
-        Plan {
+        NewShot {
             model: shot_relative(&args.model, shot_dir, "--model")?,
             animation,
             fps: args.fps,
@@ -229,101 +197,10 @@ fn plan(args: &Args, shot_dir: &Path) -> Result<(Plan, Model)> {
             cols,
             gap_mm: sheet.gap_mm,
             placement,
-            footprint,
         },
+        footprint,
         model,
     ))
-}
-
-/// A number as TOML writes it, rounded to micrometres for lengths.
-fn num(v: f64) -> String {
-    let r = (v * 1e6).round() / 1e6;
-    // No negative zero.
-    let r = if r == 0.0 { 0.0 } else { r };
-    let s = format!("{r}");
-    if s.contains(['.', 'e', 'E', 'n', 'i']) {
-        s
-    } else {
-        format!("{s}.0")
-    }
-}
-
-/// The commented shot file.
-fn shot_text(p: &Plan) -> String {
-    let mut text = String::new();
-    let mut line = |s: &str| {
-        text.push_str(s);
-        text.push('\n');
-    };
-    line("# A Props Alive shot, written by `propsalive new`. Paths are relative to this file.");
-    line("# An unknown key is refused, never ignored; `format` is the version of this layout.");
-    line(&format!("format = {SHOT_FORMAT}"));
-    line("");
-    line("# The rigged glTF 2.0 model of the prop, and the clip whose in-betweens are drawn.");
-    line(&format!("model = {}", toml_string(&p.model)));
-    line(&format!("animation = {}", toml_string(&p.animation)));
-    line("# Animation frames per second (frame N of the clip is at N / fps seconds).");
-    line(&format!("fps = {}", num(f64::from(p.fps))));
-    line("# The key prop in front of the camera (a name of [[key_poses]]).");
-    line(&format!("present_key = {}", toml_string(&p.keys[0].0)));
-    line("");
-    line("# The key poses: animation frames that exist as physical (printed) props. A key prop");
-    line("# may carry its own tag on its base (marker_id = N, not a tag of the board).");
-    for (name, frame) in &p.keys {
-        line("[[key_poses]]");
-        line(&format!("name = {}", toml_string(name)));
-        line(&format!("frame = {frame}"));
-        line("");
-    }
-    line("# The camera: a calibration file (`propsalive calibrate`), or a vertical field of");
-    line("# view in degrees when there is none (calibrate for a placement to the millimetre).");
-    line("[camera]");
-    line(&p.camera);
-    line("");
-    line(&format!(
-        "# The printed board: {}x{} tag36h11 tags of {} mm (black square), {} mm apart, ids",
-        p.rows,
-        p.cols,
-        num(p.board.tags[0].size_m * 1000.0),
-        num(p.gap_mm)
-    ));
-    line("# row-major from the top-left as printed. The marker frame's origin is the board's");
-    line("# centre, +X to the right and +Y down the printed page, +Z into the table (metres).");
-    line("# Print it with the prop's footprint: propsalive marker --shot THIS_FILE --out STEM");
-    line("[marker]");
-    line(&format!("family = {}", toml_string("tag36h11")));
-    for tag in &p.board.tags {
-        line("[[marker.tags]]");
-        line(&format!("id = {}", tag.id));
-        line(&format!(
-            "center_m = [{}, {}]",
-            num(tag.center_m.x),
-            num(tag.center_m.y)
-        ));
-        line(&format!("size_m = {}", num(tag.size_m)));
-    }
-    line("");
-    let pl = &p.placement;
-    let t = pl.translation_m;
-    line("# Where the prop stands on the marker (marker_from_prop): scaled about the model's");
-    line("# origin, turned by yaw_deg about its up axis, stood upright (model +Y up, its front");
-    line("# +Z along the marker's +Y), then moved by translation_m. `propsalive new` put the");
-    line(&format!(
-        "# key pose's lowest points on the sheet (lift {} mm) and centred their outline on the",
-        num(-f64::from(t[2]) * 1000.0)
-    ));
-    line("# board; `propsalive register` refines this from camera frames.");
-    line("[placement]");
-    line(&format!(
-        "translation_m = [{}, {}, {}]",
-        num(f64::from(t[0])),
-        num(f64::from(t[1])),
-        num(f64::from(t[2]))
-    ));
-    line(&format!("upright = {}", pl.upright));
-    line(&format!("yaw_deg = {}", num(f64::from(pl.yaw_deg))));
-    line(&format!("scale = {}", num(f64::from(pl.scale))));
-    text
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -339,8 +216,8 @@ pub fn run(args: Args) -> Result<()> {
     std::fs::create_dir_all(&dir).with_context(|| format!("creating folder {}", dir.display()))?;
     let shot_dir =
         std::fs::canonicalize(&dir).with_context(|| format!("folder {}", dir.display()))?;
-    let (plan, model) = plan(&args, &shot_dir)?;
-    let text = shot_text(&plan);
+    let (plan, fp, model) = plan(&args, &shot_dir)?;
+    let text = plan.to_commented_toml();
     // What is written must load and fit the model.
     let shot = Shot::parse(&text, shot_path)?;
     shot.check_model(shot_path, &model)?;
@@ -350,7 +227,6 @@ pub fn run(args: Args) -> Result<()> {
         bail!("{} exists; pass --force to replace it", shot_path.display());
     }
     let t = plan.placement.translation_m;
-    let fp = &plan.footprint;
     let keys: Vec<String> = plan
         .keys
         .iter()
@@ -368,8 +244,8 @@ pub fn run(args: Args) -> Result<()> {
          shift ({:.2}, {:.2}) mm; key pose {} touches the sheet over {:.0} mm2 ({} vertices)",
         plan.rows,
         plan.cols,
-        num(args.size_mm),
-        num(plan.gap_mm),
+        args.size_mm,
+        plan.gap_mm,
         plan.placement.scale,
         -t[2] * 1000.0,
         t[0] * 1000.0,
@@ -378,7 +254,7 @@ pub fn run(args: Args) -> Result<()> {
         footprint::area(&fp.outline_m) * 1e6,
         fp.contact_vertices
     );
-    let covered = covered_tags(&plan);
+    let covered = footprint::covered_tags(&fp, &plan.board);
     if covered.len() > 1 {
         let radius_mm = fp
             .outline_m
@@ -403,38 +279,13 @@ pub fn run(args: Args) -> Result<()> {
     );
     outln!(
         "     (measure a black square: {} mm), and stand key prop {} on its outline, its front along the arrow",
-        num(args.size_mm),
+        args.size_mm,
         plan.keys[0].0
     );
     outln!("  2. check the set live: propsalive preview {shot}");
     outln!("  3. refine the placement from a few frames: propsalive register {shot} --input FRAMES --write");
     outln!("  4. shoot: propsalive run {shot} --input FRAMES --out take");
     Ok(())
-}
-
-/// The ids of the board's tags whose black square overlaps the key prop's footprint (the
-/// outline's bounding box, in the marker frame).
-fn covered_tags(plan: &Plan) -> Vec<u32> {
-    let o = &plan.footprint.outline_m;
-    let (lo, hi) = o.iter().fold(
-        (
-            glam::DVec2::splat(f64::INFINITY),
-            glam::DVec2::splat(f64::NEG_INFINITY),
-        ),
-        |(l, h), p| (l.min(*p), h.max(*p)),
-    );
-    plan.board
-        .tags
-        .iter()
-        .filter(|t| {
-            let r = t.size_m / 2.0;
-            t.center_m.x + r > lo.x
-                && t.center_m.x - r < hi.x
-                && t.center_m.y + r > lo.y
-                && t.center_m.y - r < hi.y
-        })
-        .map(|t| t.id)
-        .collect()
 }
 
 #[cfg(test)]
@@ -451,15 +302,9 @@ mod tests {
             relative_to(Path::new("/a/m/x.glb"), Path::new("/a/b/c")),
             PathBuf::from("../../m/x.glb")
         );
-        assert_eq!(toml_string("a\"b\\c\n"), "\"a\\\"b\\\\c\\u000A\"");
         assert_eq!(key_name(0), "A");
         assert_eq!(key_name(25), "Z");
         assert_eq!(key_name(26), "K27");
-        assert_eq!(num(0.0), "0.0");
-        assert_eq!(num(-0.0009), "-0.0009");
-        assert_eq!(num(45.0), "45.0");
-        assert_eq!(num(-0.0), "0.0");
-        assert_eq!(num(-1e-9), "0.0");
         assert!(parse_key_frames("0, 24").is_ok_and(|f| f == vec![0, 24]));
         assert!(parse_key_frames("0,0").is_err());
         assert!(parse_key_frames("x").is_err());
