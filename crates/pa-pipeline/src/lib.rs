@@ -7,6 +7,7 @@
 pub mod ar;
 pub mod composite;
 pub mod cpu_twin;
+pub mod footprint;
 pub mod framing;
 pub mod metrics;
 pub mod shading;

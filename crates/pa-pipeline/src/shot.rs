@@ -1,6 +1,7 @@
 //! The shot: what an AR take needs to know, written as a TOML file.
 //!
 //! ```toml
+//! format = 1                    # the shot format's version (optional; see `keys`)
 //! model = "prop.glb"            # relative to the shot file
 //! animation = "Animate"         # name or index
 //! fps = 24.0
@@ -24,6 +25,7 @@
 //! translation_m = [0.0, 0.0, 0.0]
 //! upright = true                # prop +Y up (marker -Z), prop front +Z toward marker +Y
 //! yaw_deg = 0.0                 # then a turn about the prop's up axis
+//! scale = 1.0                   # uniform scale of the model about its origin (first)
 //!
 //! [diminish]                    # optional: see crate::shot_diminish
 //! fill = "rays"
@@ -33,7 +35,8 @@
 //! [`MAX_SHOT_BYTES`]; a FIFO or a device is refused at once), every number must be finite,
 //! fixed-size vectors must have exactly their length, tag ids must be codes of the family and
 //! appear once, and a parse error gives the line, the column and what was expected, never the
-//! file's text.
+//! file's text. A key the format does not know is refused with its dotted name and position
+//! ([`keys`]), never dropped.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -48,37 +51,10 @@ pub use crate::shot_diminish::ShotDiminish;
 /// tag36h11 code about 40 KiB.
 pub const MAX_SHOT_BYTES: u64 = 4 << 20;
 
-/// The field names of the shot, which parse errors may repeat.
-const FIELDS: &[&str] = &[
-    "model",
-    "animation",
-    "fps",
-    "key_poses",
-    "name",
-    "frame",
-    "marker_id",
-    "present_key",
-    "camera",
-    "calibration",
-    "fov_y_deg",
-    "marker",
-    "family",
-    "tags",
-    "id",
-    "center_m",
-    "size_m",
-    "placement",
-    "translation_m",
-    "upright",
-    "yaw_deg",
-    // [diminish] (crate::shot_diminish::FIELDS)
-    "diminish",
-    "fill",
-    "clean_plate",
-    "plate_frames",
-    "dilation_px",
-    "shadows",
-];
+mod keys;
+pub mod template;
+
+pub use keys::{KNOWN_KEYS, SHOT_FORMAT};
 
 /// Errors reading, checking or writing a shot, or turning it into a board or a camera
 /// ([`crate::shot_config`]); each but [`ShotError::Serialize`] names the file (or the frames).
@@ -95,6 +71,30 @@ pub enum ShotError {
         line: usize,
         column: usize,
         message: String,
+    },
+    /// A key that this version of the shot format does not know (misspelt, or from a newer
+    /// version). `key` is its dotted name (`None` when it is not a plain name, which is not
+    /// repeated), `table` the dotted path of its table (`placement`; `""` for the top level),
+    /// `format` the version the file claims, `known` the keys of that table and `suggestion`
+    /// the closest one.
+    #[error("{}", unknown_key_message(path, *line, *column, key.as_deref(), table, *format, known, *suggestion))]
+    UnknownKey {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        key: Option<String>,
+        table: &'static str,
+        format: u32,
+        known: &'static [&'static str],
+        suggestion: Option<&'static str>,
+    },
+    /// The file claims a newer shot format (`format = N`, N > [`SHOT_FORMAT`]).
+    #[error("{}{}: written for shot format {format}; this propsalive reads format {SHOT_FORMAT}", path.display(), fmt_position(*line, *column))]
+    NewerFormat {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        format: i64,
     },
     /// The shot parses but cannot be used.
     #[error("{}: {message}", path.display())]
@@ -151,6 +151,35 @@ pub enum ShotError {
     /// The pinhole camera cannot be made (a frame size out of range).
     #[error(transparent)]
     Camera(#[from] pa_camera::CameraError),
+}
+
+#[allow(clippy::too_many_arguments)]
+fn unknown_key_message(
+    path: &Path,
+    line: usize,
+    column: usize,
+    key: Option<&str>,
+    table: &str,
+    format: u32,
+    known: &[&str],
+    suggestion: Option<&str>,
+) -> String {
+    let what = match key {
+        Some(k) => format!("unknown key `{k}`"),
+        None => "an unknown key".into(),
+    };
+    let table = if table.is_empty() {
+        "the top level".to_string()
+    } else {
+        format!("[{table}]")
+    };
+    let hint = suggestion.map_or(String::new(), |s| format!("; did you mean `{s}`?"));
+    format!(
+        "{}{}: {what} in {table}: the file is shot format {format}, which has no such key{hint} ({table} knows {})",
+        path.display(),
+        fmt_position(line, column),
+        known.join(", ")
+    )
 }
 
 /// Exactly `N` numbers (serde's arrays would silently drop extra ones from TOML).
@@ -225,10 +254,17 @@ pub struct Placement {
     pub upright: bool,
     #[serde(default)]
     pub yaw_deg: f32,
+    /// Uniform scale of the model about its origin, applied first (positive, finite).
+    #[serde(default = "one")]
+    pub scale: f32,
 }
 
 fn yes() -> bool {
     true
+}
+
+fn one() -> f32 {
+    1.0
 }
 
 impl Default for Placement {
@@ -237,27 +273,37 @@ impl Default for Placement {
             translation_m: [0.0; 3],
             upright: true,
             yaw_deg: 0.0,
+            scale: 1.0,
         }
     }
 }
 
 impl Placement {
-    /// `marker_from_prop`.
+    /// `marker_from_prop`: scale about the model's origin, yaw about its up axis, upright,
+    /// then translation. A scale of exactly 1 leaves the matrix as it was without one.
     pub fn marker_from_prop(&self) -> Mat4 {
         let upright = if self.upright {
             Mat3::from_cols(Vec3::X, Vec3::NEG_Z, Vec3::Y)
         } else {
             Mat3::IDENTITY
         };
-        Mat4::from_translation(Vec3::from(self.translation_m))
+        let placed = Mat4::from_translation(Vec3::from(self.translation_m))
             * Mat4::from_mat3(upright)
-            * Mat4::from_rotation_y(self.yaw_deg.to_radians())
+            * Mat4::from_rotation_y(self.yaw_deg.to_radians());
+        if self.scale == 1.0 {
+            placed
+        } else {
+            placed * Mat4::from_scale(Vec3::splat(self.scale))
+        }
     }
 }
 
 /// A shot file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Shot {
+    /// The shot format's version the file claims (1 when it says nothing).
+    #[serde(default = "format_one")]
+    pub format: u32,
     pub model: PathBuf,
     #[serde(default)]
     pub animation: Option<String>,
@@ -277,6 +323,10 @@ pub struct Shot {
     pub diminish: ShotDiminish,
 }
 
+fn format_one() -> u32 {
+    SHOT_FORMAT
+}
+
 fn default_fps() -> f32 {
     24.0
 }
@@ -292,8 +342,9 @@ impl Shot {
     /// Parses and checks shot TOML; `path` names it in errors (and is where relative paths
     /// inside start from).
     pub fn parse(text: &str, path: &Path) -> Result<Self, ShotError> {
+        keys::check_keys(text, path)?;
         let shot: Shot = toml::from_str(text).map_err(|e| {
-            let e = toml_error(text, &e, FIELDS);
+            let e = toml_error(text, &e, &keys::field_names());
             ShotError::Parse {
                 path: path.into(),
                 line: e.line,
@@ -416,6 +467,12 @@ impl Shot {
         if !p.yaw_deg.is_finite() {
             return Err(bad("[placement] yaw_deg is not a finite number".into()));
         }
+        if !(p.scale.is_finite() && p.scale > 0.0) {
+            return Err(bad(format!(
+                "[placement] scale must be a positive finite number, got {}",
+                p.scale
+            )));
+        }
         crate::shot_diminish::check(&self.diminish, path)
     }
 
@@ -526,6 +583,177 @@ size_m = 0.05
             let e = Shot::load(&p).expect_err(needle).to_string();
             assert!(e.contains(needle) && e.contains("shot.toml"), "{e}");
         }
+    }
+
+    /// Line and column (1-based) of the first occurrence of `needle` in `text`.
+    fn position_of(text: &str, needle: &str) -> (usize, usize) {
+        let at = text.find(needle).expect("needle in text");
+        pa_camera::diag::line_column(text, at)
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_with_name_position_and_format() {
+        let placed = format!("{SHOT}\n[placement]\nyaw_deg = 10.0\n");
+        for (text, dotted, needle, hint) in [
+            (
+                SHOT.replace("[marker]\n", "[marker]\nimage = \"x.png\"\n"),
+                "marker.image",
+                "image",
+                None,
+            ),
+            (
+                format!("{SHOT}\n[placment]\nyaw_deg = 10.0\n"),
+                "placment",
+                "placment",
+                Some("placement"),
+            ),
+            (
+                placed.replace("yaw_deg = 10.0", "yaw_degs = 10.0"),
+                "placement.yaw_degs",
+                "yaw_degs",
+                Some("yaw_deg"),
+            ),
+            (
+                SHOT.replace("frame = 24", "frame = 24\nmarkerid = 3"),
+                "key_poses.markerid",
+                "markerid",
+                Some("marker_id"),
+            ),
+            (
+                SHOT.replace("size_m = 0.05", "size_m = 0.05\nrotation_deg = 5.0"),
+                "marker.tags.rotation_deg",
+                "rotation_deg",
+                None,
+            ),
+            (
+                format!("placement.scael = 2.0\n{SHOT}"),
+                "placement.scael",
+                "scael",
+                Some("scale"),
+            ),
+            (
+                format!("modle = \"m.glb\"\n{SHOT}"),
+                "modle",
+                "modle",
+                Some("model"),
+            ),
+        ] {
+            let (_d, p) = write(&text);
+            let err = Shot::load(&p).expect_err(dotted);
+            let ShotError::UnknownKey {
+                line,
+                column,
+                key,
+                format,
+                suggestion,
+                ..
+            } = &err
+            else {
+                panic!("{dotted}: not an unknown key: {err}");
+            };
+            assert_eq!(key.as_deref(), Some(dotted));
+            assert_eq!((*line, *column), position_of(&text, needle), "{dotted}");
+            assert_eq!(*format, 1);
+            assert_eq!(*suggestion, hint, "{dotted}");
+            let msg = err.to_string();
+            assert!(
+                msg.contains(&format!(
+                    "shot.toml:{line}:{column}: unknown key `{dotted}`"
+                )) && msg.contains("shot format 1"),
+                "{msg}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_format_is_claimed_checked_and_kept() {
+        let (_d, p) = write(&format!("format = 1\n{SHOT}"));
+        let shot = Shot::load(&p).expect("format 1");
+        assert_eq!(shot.format, 1);
+        let (_d, p) = write(SHOT);
+        assert_eq!(Shot::load(&p).expect("no format").format, 1);
+        assert!(shot.to_toml().expect("toml").starts_with("format = 1\n"));
+        // A newer format is refused before its keys are looked at.
+        let text = format!("{SHOT}\n[shadow]\nstrength = 1.0\n").replace("fps", "format = 2\nfps");
+        let (_d, p) = write(&text);
+        let err = Shot::load(&p).expect_err("format 2");
+        assert!(
+            matches!(err, ShotError::NewerFormat { format: 2, .. }),
+            "{err}"
+        );
+        let (line, column) = position_of(&text, "format");
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{}:{line}:{column}: written for shot format 2; this propsalive reads format 1",
+                p.display()
+            )
+        );
+        for bad in [
+            "format = 0",
+            "format = -3",
+            "format = \"1\"",
+            "format = 1.0",
+        ] {
+            let (_d, p) = write(&format!("{bad}\n{SHOT}"));
+            let e = Shot::load(&p).expect_err(bad).to_string();
+            assert!(
+                e.contains("shot.toml:1:1:") && e.contains("whole number from 1 to 1"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    /// A file that is not a shot may parse as TOML: a key that is not a plain name is not
+    /// repeated in the message.
+    #[test]
+    fn strange_keys_are_not_echoed() {
+        let (_d, p) = write(&format!("\"root:x:0:0 secret\" = 1\n{SHOT}"));
+        let e = Shot::load(&p).expect_err("unknown").to_string();
+        assert!(e.contains("shot.toml:1:1: an unknown key"), "{e}");
+        assert!(!e.contains("secret") && !e.contains("root"), "{e}");
+    }
+
+    #[test]
+    fn scale_is_checked_and_scales_about_the_origin_first() {
+        for bad in ["0.0", "-1.0", "nan", "inf"] {
+            let (_d, p) = write(&format!("{SHOT}\n[placement]\nscale = {bad}\n"));
+            let e = Shot::load(&p).expect_err(bad).to_string();
+            assert!(
+                e.contains("[placement] scale must be a positive finite"),
+                "{e}"
+            );
+        }
+        let text = format!(
+            "{SHOT}\n[placement]\nscale = 2.5\nyaw_deg = 30.0\ntranslation_m = [0.01, 0.02, -0.003]\n"
+        );
+        let (_d, p) = write(&text);
+        let shot = Shot::load(&p).expect("scaled");
+        assert_eq!(shot.placement.scale, 2.5);
+        let unscaled = Placement {
+            scale: 1.0,
+            ..shot.placement.clone()
+        };
+        // The scaled placement of a point is the unit placement of the scaled point.
+        for q in [Vec3::ZERO, Vec3::X, Vec3::new(0.02, -0.05, 0.07)] {
+            let a = shot.placement.marker_from_prop().transform_point3(q);
+            let b = unscaled.marker_from_prop().transform_point3(q * 2.5);
+            assert!((a - b).length() < 1e-6, "{q}: {a} vs {b}");
+        }
+        // The origin stays where the translation puts it.
+        let o = shot
+            .placement
+            .marker_from_prop()
+            .transform_point3(Vec3::ZERO);
+        assert!((o - Vec3::new(0.01, 0.02, -0.003)).length() < 1e-7);
+        // Scale 1 is the matrix without a scale, bit for bit.
+        let mut m = unscaled.marker_from_prop().to_cols_array();
+        let r = Mat4::from_translation(Vec3::new(0.01, 0.02, -0.003))
+            * Mat4::from_mat3(Mat3::from_cols(Vec3::X, Vec3::NEG_Z, Vec3::Y))
+            * Mat4::from_rotation_y(30f32.to_radians());
+        assert_eq!(m, r.to_cols_array());
+        m[0] = 0.0;
+        assert_ne!(m, r.to_cols_array());
     }
 
     #[test]

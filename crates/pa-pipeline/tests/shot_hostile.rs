@@ -184,3 +184,63 @@ fn the_valid_base_shot_loads() {
     let shot = Shot::parse(&text, Path::new("base.toml")).expect("valid");
     assert_eq!(shot.marker.tags.len(), 2);
 }
+
+/// A key this version does not know is never dropped (issue 16): it is refused with its dotted
+/// name, its line and column, and the format the file claims; a misspelling gets the closest
+/// known key.
+#[test]
+fn unknown_keys_are_refused_not_dropped() {
+    for (file, want) in [
+        (
+            "unknown_key_marker_image.toml",
+            ":18:1: unknown key `marker.image` in [marker]: the file is shot format 1, which has \
+             no such key ([marker] knows family, tags)",
+        ),
+        (
+            "misspelt_section_placment.toml",
+            ":29:2: unknown key `placment` in the top level: the file is shot format 1, which has \
+             no such key; did you mean `placement`?",
+        ),
+        (
+            "misspelt_key_yaw_degs.toml",
+            ":32:1: unknown key `placement.yaw_degs` in [placement]: the file is shot format 1, \
+             which has no such key; did you mean `yaw_deg`? ([placement] knows translation_m, \
+             upright, yaw_deg, scale)",
+        ),
+        (
+            "unknown_key_in_tag.toml",
+            ":26:1: unknown key `marker.tags.rotation_deg` in [marker.tags]",
+        ),
+    ] {
+        let msg = load_err(&regressions().join(file));
+        assert!(msg.contains(&format!("{file}{want}")), "{file}: {msg}");
+    }
+}
+
+#[test]
+fn a_newer_or_nonsense_format_is_refused() {
+    let msg = load_err(&regressions().join("newer_format.toml"));
+    assert!(
+        msg.ends_with(
+            "newer_format.toml:1:1: written for shot format 2; this propsalive reads format 1"
+        ),
+        "{msg}"
+    );
+    let msg = load_err(&regressions().join("format_zero.toml"));
+    assert!(
+        msg.contains("format_zero.toml:1:1:")
+            && msg.contains("`format` is the shot format's version"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn the_scale_must_be_positive_and_finite() {
+    for file in ["zero_scale.toml", "nan_scale.toml"] {
+        let msg = load_err(&regressions().join(file));
+        assert!(
+            msg.contains(file) && msg.contains("[placement] scale must be a positive finite"),
+            "{file}: {msg}"
+        );
+    }
+}

@@ -42,7 +42,9 @@ enum Command {
     Render(cmd::render::Args),
     /// Write the model posed at one animation time as OBJ, STL or GLB (for 3D printing).
     Export(cmd::export::Args),
-    /// Write a printable AprilTag marker or board: SVG at true size and PNG at a given DPI.
+    /// Write a new shot file for a model: board, key poses, camera, the prop standing on the sheet.
+    New(cmd::new::Args),
+    /// Write a printable AprilTag marker or board (or a shot's, with its footprints): SVG at true size and PNG at a given DPI.
     Marker(cmd::marker::Args),
     /// Detect and track the marker in an image, a folder of images or a video; JSON lines.
     Track(cmd::track::Args),
@@ -65,6 +67,7 @@ fn main() -> std::process::ExitCode {
         Command::Inspect(args) => cmd::inspect::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Export(args) => cmd::export::run(args),
+        Command::New(args) => cmd::new::run(args),
         Command::Marker(args) => cmd::marker::run(args),
         Command::Track(args) => cmd::track::run(args),
         Command::Calibrate(args) => cmd::calibrate::run(args),

@@ -1,4 +1,4 @@
-//! `propsalive export MODEL --animation A (--time S | --frame N --fps F) --out FILE`.
+//! `propsalive export MODEL --animation A (--time S | --frame N --fps F) [--scale K] --out FILE`.
 
 use std::path::PathBuf;
 
@@ -21,12 +21,26 @@ pub struct Args {
     /// Frames per second for --frame.
     #[arg(long)]
     pub fps: Option<f32>,
+    /// Uniform scale of the model about its origin, as a shot's `[placement] scale` (the size
+    /// the prop is drawn at, so the size to print it at).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_scale)]
+    pub scale: f32,
     /// Output file: .obj, .stl or .glb (written atomically).
     #[arg(long, short)]
     pub out: PathBuf,
     /// Replace the output file if it exists.
     #[arg(long)]
     pub force: bool,
+}
+
+/// A `--scale`: a positive, finite number.
+pub fn parse_scale(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(k) if k.is_finite() && k > 0.0 => Ok(k),
+        _ => Err(format!(
+            "{s:?} is not a scale: it must be a positive, finite number (1 = as modelled)"
+        )),
+    }
 }
 
 /// Resolved configuration.
@@ -81,15 +95,21 @@ pub fn run(args: Args) -> Result<()> {
         Some(a) => anim::sample(&model, a, cfg.time_s),
         None => anim::Pose::rest(&model),
     };
-    let posed = skin::pose_meshes(&model, &pose);
+    let mut posed = skin::pose_meshes(&model, &pose);
+    if args.scale != 1.0 {
+        for v in posed.iter_mut().flat_map(|p| &mut p.positions) {
+            *v *= args.scale;
+        }
+    }
     export::write(&model, &posed, &args.out)
         .with_context(|| format!("exporting {}", args.model.display()))?;
     let verts: usize = posed.iter().map(|p| p.positions.len()).sum();
     outln!(
-        "wrote {} ({} primitives, {verts} vertices, t = {} s)",
+        "wrote {} ({} primitives, {verts} vertices, t = {} s, scale {})",
         args.out.display(),
         posed.len(),
-        cfg.time_s
+        cfg.time_s,
+        args.scale
     );
     Ok(())
 }

@@ -10,6 +10,12 @@
 //!   (no font is built in); the same label is stored in its `tEXt` metadata (`Title`,
 //!   `Description`) and in the file name.
 //!
+//! With `--shot SHOT.toml`, the sheet is the shot's board (its `[[marker.tags]]`, each at its
+//! centre and size) with the footprint of each key prop: where its key pose, placed by the
+//! shot's `[placement]`, touches the table (the convex hull of the vertices within 2 mm of the
+//! lowest, `pa_pipeline::footprint`), labelled with the key's name, and an arrow to the prop's
+//! front, so that the print and the prop on it stand where the shot says.
+//!
 //! The size given is the side of the tag's black border square, the quantity the tracker's
 //! `--tag-size-m` means. Board tags are centred at `(c - (cols-1)/2, r - (rows-1)/2) *
 //! (size + gap)` from the board centre, ids row-major from the top-left as printed.
@@ -17,7 +23,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use pa_overlay::sheet::{encode_png, raster, svg, Sheet, SheetScale};
+use pa_overlay::sheet::{encode_png, raster, svg, Footprint, Sheet, SheetScale, TagAt};
+use pa_pipeline::footprint;
+use pa_pipeline::shot::Shot;
 use pa_track::TagFamily;
 
 #[derive(clap::Args)]
@@ -30,8 +38,13 @@ pub struct Args {
     pub id: u32,
     /// Side of the tag's black border square in millimetres (what the tracker calls the
     /// tag size).
-    #[arg(long)]
-    pub size_mm: f64,
+    #[arg(long, required_unless_present = "shot")]
+    pub size_mm: Option<f64>,
+    /// Print a shot's board (its `[[marker.tags]]`) with the footprint of each key prop (the
+    /// outline of where its key pose touches the table, its name and a front arrow) instead
+    /// of --family/--id/--board/--size-mm.
+    #[arg(long, conflicts_with_all = ["board", "size_mm", "id", "family"])]
+    pub shot: Option<PathBuf>,
     /// Resolution of the PNG in dots per inch.
     #[arg(long, default_value_t = 300.0)]
     pub dpi: f64,
@@ -65,20 +78,94 @@ pub struct Output {
     pub svg: PathBuf,
 }
 
+/// The sheet of a shot: its board and the footprints of its key poses.
+fn shot_sheet(args: &Args, shot_path: &Path) -> Result<Sheet> {
+    let shot = Shot::load(shot_path)?;
+    let model_path = Shot::resolve(shot_path, &shot.model);
+    let model = pa_model::Model::load(&model_path)?;
+    let anim = shot.check_model(shot_path, &model)?;
+    let family: TagFamily = shot.marker.family.parse()?;
+    let tags: Vec<TagAt> = shot
+        .marker
+        .tags
+        .iter()
+        .map(|t| TagAt {
+            id: t.id,
+            center_mm: (t.center_m[0] * 1000.0, t.center_m[1] * 1000.0),
+            size_mm: t.size_m * 1000.0,
+        })
+        .collect();
+    let smallest = tags.iter().map(|t| t.size_mm).fold(f64::INFINITY, f64::min);
+    let scale = SheetScale::new(family, smallest, args.dpi, args.margin_mm)?;
+    let marker_from_prop = shot.placement.marker_from_prop();
+    let mut footprints = Vec::new();
+    for (line, k) in shot.key_poses.iter().enumerate() {
+        let points = footprint::posed_points(
+            &model,
+            Some(anim),
+            k.frame as f32 / shot.fps,
+            marker_from_prop,
+        );
+        let fp = footprint::footprint(&points, marker_from_prop, footprint::CONTACT_BAND_M)
+            .with_context(|| format!("{}: the model has no vertices", model_path.display()))?;
+        if fp.lowest_z_m.abs() > 0.001 {
+            errln!(
+                "note: key pose {:?} {} the sheet by {:.1} mm (its lowest point; [placement] translation_m[2])",
+                k.name,
+                if fp.lowest_z_m < 0.0 { "floats above" } else { "sinks into" },
+                fp.lowest_z_m.abs() * 1000.0
+            );
+        }
+        footprints.push(Footprint {
+            name: k.name.clone(),
+            outline_mm: fp
+                .outline_m
+                .iter()
+                .map(|p| (p.x * 1000.0, p.y * 1000.0))
+                .collect(),
+            centre_mm: (fp.centre_m.x * 1000.0, fp.centre_m.y * 1000.0),
+            front: (fp.front.x, fp.front.y),
+            label_line: line as u32,
+        });
+    }
+    let name = shot_path.file_name().map_or_else(
+        || shot_path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let mut sheet = scale.layout_tags(
+        &tags,
+        footprints,
+        &format!("shot {name}: board and key prop footprints"),
+    )?;
+    sheet.file_stem = format!(
+        "{}_board",
+        shot_path
+            .file_stem()
+            .map_or_else(|| "shot".into(), |s| s.to_string_lossy().into_owned())
+    );
+    Ok(sheet)
+}
+
 /// Resolves and checks the flags (nothing is written).
 pub fn resolve(args: &Args) -> Result<Output> {
-    let family: TagFamily = args.family.parse()?;
-    let scale = SheetScale::new(family, args.size_mm, args.dpi, args.margin_mm)?;
-    let board = match &args.board {
-        Some(b) => Some(super::parse_grid(b)?),
-        None => None,
+    let sheet = match (&args.shot, args.size_mm) {
+        (Some(shot), _) => shot_sheet(args, shot)?,
+        (None, Some(size_mm)) => {
+            let family: TagFamily = args.family.parse()?;
+            let scale = SheetScale::new(family, size_mm, args.dpi, args.margin_mm)?;
+            let board = match &args.board {
+                Some(b) => Some(super::parse_grid(b)?),
+                None => None,
+            };
+            let first_id = if args.board.is_some() {
+                args.first_id
+            } else {
+                args.id
+            };
+            scale.layout(board, first_id, args.gap_mm)?
+        }
+        (None, None) => bail!("--size-mm or --shot is needed"),
     };
-    let first_id = if args.board.is_some() {
-        args.first_id
-    } else {
-        args.id
-    };
-    let sheet = scale.layout(board, first_id, args.gap_mm)?;
     let out_str = args.out.to_string_lossy();
     let stem = if args.out.is_dir() || out_str.ends_with('/') || out_str.ends_with('\\') {
         args.out.join(&sheet.file_stem)
@@ -155,7 +242,20 @@ pub fn run(args: Args) -> Result<()> {
         out.png.display(),
         sheet.dpi
     );
-    if sheet.ids.len() > 1 {
+    if let Some(shot) = &args.shot {
+        for fp in &sheet.footprints {
+            outln!(
+                "key prop {}: footprint outline centred at ({:.1}, {:.1}) mm from the marker origin; stand it on its outline, its front along the arrow",
+                fp.name,
+                (fp.centre_mm.0 * 10.0).round() / 10.0 + 0.0,
+                (fp.centre_mm.1 * 10.0).round() / 10.0 + 0.0
+            );
+        }
+        outln!(
+            "next: propsalive preview {} (then register and run)",
+            shot.display()
+        );
+    } else if sheet.ids.len() > 1 {
         outln!(
             "track it with: propsalive track INPUT --tag-size-m {} --family {} --board {}x{} --gap-m {} --first-id {}",
             sheet.size_mm / 1000.0,

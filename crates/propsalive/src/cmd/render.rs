@@ -1,5 +1,5 @@
-//! `propsalive render MODEL --animation A --fps 24 --size 1280x720 --out DIR`: one PNG per
-//! animation frame, the camera framing the animated model's bounds unless given.
+//! `propsalive render MODEL --animation A --fps 24 --size 1280x720 [--scale K] --out DIR`: one
+//! PNG per animation frame, the camera framing the animated model's bounds unless given.
 
 use std::path::{Path, PathBuf};
 
@@ -39,6 +39,10 @@ pub struct Args {
     /// Point the camera looks at, "x,y,z"; default: the centre of the animated bounds.
     #[arg(long)]
     pub target: Option<String>,
+    /// Uniform scale of the model about its origin, as a shot's `[placement] scale`; --eye and
+    /// --target are in the scaled model's world.
+    #[arg(long, default_value_t = 1.0, value_parser = super::export::parse_scale)]
+    pub scale: f32,
     /// Render albedo only (no lighting).
     #[arg(long)]
     pub unlit: bool,
@@ -69,6 +73,8 @@ pub struct Config {
     pub near_m: f32,
     pub far_m: f32,
     pub lighting: Option<Lighting>,
+    /// `world_from_model`: the uniform `--scale`.
+    pub world_from_model: Mat4,
 }
 
 /// Bounds of the model over every frame of the animation.
@@ -148,6 +154,7 @@ pub fn resolve(args: &Args, model: &Model) -> Result<Config> {
         None => Intrinsics::from_fov_y(args.fov_deg.to_radians(), w, h)?,
     };
     let (lo, hi) = animated_bounds(model, animation, frame_count, args.fps)?;
+    let (lo, hi) = (lo * args.scale, hi * args.scale);
     let (mut camera_from_world, mut near_m, mut far_m) =
         pa_pipeline::framing::frame_bounds(lo, hi, &intrinsics, 1.1);
     if args.eye.is_some() || args.target.is_some() {
@@ -175,6 +182,7 @@ pub fn resolve(args: &Args, model: &Model) -> Result<Config> {
         near_m,
         far_m,
         lighting: (!args.unlit).then(default_lighting),
+        world_from_model: Mat4::from_scale(Vec3::splat(args.scale)),
     })
 }
 
@@ -239,7 +247,7 @@ pub fn render_frames(
             Some(a) => anim::sample(model, a, i as f32 / cfg.fps),
             None => anim::Pose::rest(model),
         };
-        let frame = twin.frame(model, &pose, Mat4::IDENTITY);
+        let frame = twin.frame(model, &pose, cfg.world_from_model);
         let draws = twin.draws(&frame);
         let img = renderer.render(
             &camera,
