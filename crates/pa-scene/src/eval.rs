@@ -20,7 +20,7 @@ use pa_render::Renderer;
 use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
-use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
+use crate::scene::{Scene, SceneFrame, SceneSpec};
 use crate::SceneError;
 
 /// Metrics of one frame.
@@ -153,7 +153,7 @@ pub fn pipeline_for(
         scene.model.clone(),
         0,
         camera,
-        marker_from_prop(),
+        scene.marker_from_prop(),
         Some(tracker),
         settings,
     )?;

@@ -30,6 +30,11 @@ pub struct Args {
     /// Use every Nth frame of the 49-frame clip (1 = all).
     #[arg(long, default_value_t = 2)]
     pub stride: u32,
+    /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
+    /// `cloth`, `fill-light`, or `hard` (all of them). A variant that names a table (`cloth`)
+    /// runs on that table only; otherwise on wood and plain.
+    #[arg(long, default_value = "default")]
+    pub scene: String,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -44,6 +49,19 @@ pub fn run(args: Args) -> Result<()> {
 
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    let variant = pa_scene::parse_variant(&args.scene)?;
+    let backgrounds = match variant.background {
+        Some(b) => vec![b],
+        None => vec![Background::Wood, Background::Plain],
+    };
+    // Rows say which set they were measured on, unless it is the default set.
+    let label = |b: Background| {
+        if variant.set.is_default() && variant.background.is_none() {
+            format!("{b:?}")
+        } else {
+            format!("{b:?} ({})", args.scene)
+        }
+    };
     let mut renderer = Renderer::new()?;
     errln!("renderer: {}", renderer.adapter_info());
     let stride = args.stride;
@@ -51,7 +69,7 @@ pub fn run(args: Args) -> Result<()> {
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(stride as usize)).collect();
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
-    for background in [Background::Wood, Background::Plain] {
+    for (bi, &background) in backgrounds.iter().enumerate() {
         for m in methods() {
             let mut all = Vec::new();
             let mut seed_of = Vec::new();
@@ -63,6 +81,7 @@ pub fn run(args: Args) -> Result<()> {
                     background,
                     camera_path: m.camera_path,
                     key_frames: m.key_frames.clone(),
+                    set: variant.set,
                     ..SceneSpec::default()
                 };
                 errln!("{background:?} seed {seed}: {}", m.name);
@@ -77,7 +96,7 @@ pub fn run(args: Args) -> Result<()> {
                 all.extend(r);
             }
             rows.push(MethodRow {
-                background: format!("{background:?}"),
+                background: label(background),
                 method: m.name.to_string(),
                 prop_psnr_db: mean(all.iter().map(|f| f.psnr_prop)),
                 prop_ssim: mean(all.iter().map(|f| f.ssim_prop)),
@@ -90,7 +109,7 @@ pub fn run(args: Args) -> Result<()> {
                 ),
                 frames: all.len(),
             });
-            if background == Background::Wood
+            if bi == 0
                 && (m.name.starts_with("ours:")
                     || m.name.starts_with("ours, two")
                     || m.name.starts_with("paper"))
