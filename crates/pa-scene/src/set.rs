@@ -8,10 +8,12 @@
 //!   in-between's shadow: the truth of an AR frame is the set as if the animated prop stood
 //!   there), not in the clean plate (no prop).
 //! - `edge`: the prop stands across the sheet's back edge (away from the camera), half its
-//!   pedestal on the table, and half on the back middle tag: the key prop's outline crosses
-//!   paper, tag and wood.
-//! - `covered-tag`: the prop stands on about a third of the back middle tag (id 1): the tag's
-//!   black runs under and behind the prop in the camera's view.
+//!   pedestal on the table, and on half of the back middle tag (id 1, which then never
+//!   decodes): the key prop's outline crosses paper, tag and wood.
+//! - `covered-tag`: the prop's pedestal reaches 3 mm into the printed square of the front
+//!   middle tag (id 6: its white quiet zone, 5.6 mm wide, up to the black border), and the
+//!   tag still decodes (measured: in every frame where it does on the default set; 1.5 mm
+//!   farther, touching the black border, it no longer does).
 //! - `cloth`: the table is a woven cloth (plain weave with coloured bands) instead of wood.
 //! - `fill-light`: a second, cooler light from the camera's right.
 //! - `hard`: all of them (`edge` takes precedence over `covered-tag` for the placement; the
@@ -36,7 +38,7 @@ pub enum Placement {
     /// Across the sheet's back edge (-Y, away from the camera): half the pedestal on the
     /// table.
     SheetEdge,
-    /// On about a third of the back middle tag (id 1).
+    /// On the quiet zone of the front middle tag (id 6), which still decodes.
     CoveredTag,
 }
 
@@ -46,7 +48,7 @@ impl Placement {
         match self {
             Placement::Centre => Vec2::ZERO,
             Placement::SheetEdge => Vec2::new(0.0, -BOARD_SHEET_M * 0.5),
-            Placement::CoveredTag => Vec2::new(0.0, -0.03),
+            Placement::CoveredTag => Vec2::new(0.0, 0.012),
         }
     }
 }
@@ -295,34 +297,30 @@ mod tests {
     }
 
     #[test]
-    fn the_edge_placement_straddles_the_sheet_edge_and_covered_tag_covers_a_third_of_a_tag() {
+    fn the_edge_placement_straddles_the_sheet_edge_and_covered_tag_reaches_into_a_tag() {
         // The pedestal's radius is 0.24 of the prop's height.
         let r = 0.24 * crate::PropSpec::default().height_m;
         let edge = Placement::SheetEdge.offset_m();
         assert!(edge.y - r < -BOARD_SHEET_M * 0.5 && edge.y + r > -BOARD_SHEET_M * 0.5);
         assert_eq!(edge.x, 0.0);
-        // Tag 1 (back middle): its printed square (10 cells of 4.5 mm) around (0, -0.085).
         let board = crate::scene::set_board();
-        let tag = board.tags.iter().find(|t| t.id == 1).expect("tag 1");
-        assert_eq!(tag.center_m, glam::DVec2::new(0.0, -0.085));
-        let half = tag.size_m * 10.0 / 8.0 * 0.5;
-        let c = Placement::CoveredTag.offset_m().as_dvec2();
-        // Fraction of the tag's area under the pedestal's disc (a 200 x 200 sample grid).
-        let n = 200;
-        let mut under = 0;
-        for j in 0..n {
-            for i in 0..n {
-                let p = tag.center_m
-                    + glam::DVec2::new(
-                        (i as f64 + 0.5) / n as f64 * 2.0 - 1.0,
-                        (j as f64 + 0.5) / n as f64 * 2.0 - 1.0,
-                    ) * half;
-                if (p - c).length() < r as f64 {
-                    under += 1;
-                }
-            }
-        }
-        let f = under as f64 / (n * n) as f64;
-        assert!((0.15..0.45).contains(&f), "{f}");
+        let tag = |id: u32| board.tags.iter().find(|t| t.id == id).expect("tag");
+        // Tag 1 (back middle): the edge placement stands on half of its printed square.
+        let t1 = tag(1);
+        assert_eq!(t1.center_m, glam::DVec2::new(0.0, -0.085));
+        let printed_half = t1.size_m * 10.0 / 8.0 * 0.5;
+        let covered = (edge.y as f64 + r as f64) - (t1.center_m.y - printed_half);
+        assert!(
+            (0.45..0.65).contains(&(covered / (2.0 * printed_half))),
+            "{covered}"
+        );
+        // Tag 6 (front middle): the covered-tag placement reaches into its printed square
+        // (10 cells), not onto its black border (8 cells).
+        let t6 = tag(6);
+        assert_eq!(t6.center_m, glam::DVec2::new(0.0, 0.085));
+        let reach = (Placement::CoveredTag.offset_m().y + r) as f64;
+        let printed = t6.center_m.y - t6.size_m * 10.0 / 8.0 * 0.5;
+        let border = t6.center_m.y - t6.size_m * 0.5;
+        assert!(reach > printed + 0.002 && reach < border - 0.001, "{reach}");
     }
 }

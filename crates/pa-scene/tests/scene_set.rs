@@ -354,3 +354,41 @@ fn the_default_set_renders_as_it_always_did() {
     let (plate, plate_view) = scene.clean_plate(&mut r).expect("plate");
     assert!(plate == replica(&mut r, plate_view, None));
 }
+
+#[test]
+fn the_tag_under_the_covered_tag_placement_still_decodes() {
+    // The pedestal stands 3 mm into tag 6's printed square (its quiet zone): the detector
+    // still finds tag 6 in the input frames, as it does on the default set.
+    let Some(mut r) = renderer() else { return };
+    let v = parse_variant("covered-tag").expect("variant");
+    let scene = Scene::new(
+        SceneSpec {
+            width: 480,
+            height: 270,
+            set: v.set,
+            ..SceneSpec::default()
+        },
+        &mut r,
+    )
+    .expect("scene");
+    let mut det = pa_track::Detector::new(pa_track::DetectorConfig::default()).expect("detector");
+    for i in [0, 24, 48] {
+        let f = scene.frame(&mut r, i).expect("frame");
+        let gray: Vec<u8> = f
+            .input
+            .rgba8
+            .chunks_exact(4)
+            .map(|p| {
+                ((u32::from(p[0]) * 77 + u32::from(p[1]) * 150 + u32::from(p[2]) * 29) >> 8) as u8
+            })
+            .collect();
+        let image = pa_track::GrayImage::new(480, 270, gray).expect("image");
+        let ids: Vec<u32> = det
+            .detect(&image)
+            .expect("detect")
+            .iter()
+            .map(|d| d.id)
+            .collect();
+        assert!(ids.contains(&6), "frame {i}: {ids:?}");
+    }
+}
