@@ -7,6 +7,10 @@
 //!   had been printed and shot (what the paper's authors wanted and never had);
 //! - the **clean plate** (once): the set without the prop, from a reference view.
 //!
+//! [`SceneSpec::set`] adds what real sets have (soft cast and contact shadows, the prop across
+//! the sheet's edge or on a tag, a fill light; [`crate::set`]), and [`Background::Cloth`] a
+//! woven table; by default the set is exactly the original one.
+//!
 //! World space is the marker (board) frame of `pa-track`: origin at the board centre, +X right,
 //! +Y down the printed page, +Z into the table, metres. The prop stands at the origin with
 //! `marker_from_prop` (prop +Y up -> marker -Z, prop front +Z -> marker +Y).
