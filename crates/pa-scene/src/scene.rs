@@ -613,6 +613,9 @@ pub fn downsample(frame: &RenderedFrame, s: u32) -> RenderedFrame {
     }
 }
 
+/// How much higher the camera looks down with [`SetOptions::high_camera`], degrees.
+pub const HIGH_CAMERA_RAISE_DEG: f32 = 24.0;
+
 /// The camera path: an arc in front of the prop with handheld jitter (or a fixed view).
 fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
     let mut rng = Rng::new(spec.seed);
@@ -643,10 +646,13 @@ fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
             } else {
                 0.0
             };
-            let (azimuth_deg, elevation_deg, distance_m, jitter) = match spec.camera_path {
+            let (azimuth_deg, mut elevation_deg, distance_m, jitter) = match spec.camera_path {
                 CameraPath::Handheld => (-18.0 + 36.0 * u, 28.0 + 6.0 * u, 0.55 - 0.05 * u, 1.0),
                 CameraPath::Static => (0.0, 30.0, 0.55, 0.0),
             };
+            if spec.set.high_camera {
+                elevation_deg += HIGH_CAMERA_RAISE_DEG;
+            }
             let t = i as f32 / 24.0;
             let j = |k: usize| {
                 let (f, p, a) = waves[k];

@@ -16,6 +16,10 @@
 //!   farther, touching the black border, it no longer does).
 //! - `cloth`: the table is a woven cloth (plain weave with coloured bands) instead of wood.
 //! - `fill-light`: a second, cooler light from the camera's right.
+//! - `high-camera`: the camera looks down 24 deg more steeply (52-58 deg instead of 28-34):
+//!   the background behind the head in the image, where the in-betweens reveal it, is then
+//!   the sheet and its back edge about 0.1 m behind the prop, and the prop's cast shadow,
+//!   instead of the table far behind.
 //! - `hard`: all of them (`edge` takes precedence over `covered-tag` for the placement; the
 //!   edge placement covers a tag too).
 //!
@@ -61,6 +65,8 @@ pub struct SetOptions {
     pub placement: Placement,
     /// The second light ([`fill_light`]).
     pub fill_light: bool,
+    /// The camera looks down more steeply ([`crate::scene::HIGH_CAMERA_RAISE_DEG`]).
+    pub high_camera: bool,
 }
 
 impl SetOptions {
@@ -116,13 +122,14 @@ pub struct SceneVariant {
 }
 
 /// The feature names [`parse_variant`] accepts, in the order of its help.
-pub const VARIANT_NAMES: [&str; 7] = [
+pub const VARIANT_NAMES: [&str; 8] = [
     "default",
     "shadows",
     "edge",
     "covered-tag",
     "cloth",
     "fill-light",
+    "high-camera",
     "hard",
 ];
 
@@ -138,9 +145,11 @@ pub fn parse_variant(list: &str) -> Result<SceneVariant, SceneError> {
             "covered-tag" => covered = true,
             "cloth" => v.background = Some(Background::Cloth),
             "fill-light" => v.set.fill_light = true,
+            "high-camera" => v.set.high_camera = true,
             "hard" => {
                 v.set.shadows = true;
                 v.set.fill_light = true;
+                v.set.high_camera = true;
                 v.background = Some(Background::Cloth);
                 edge = true;
                 covered = true;
@@ -285,7 +294,7 @@ mod tests {
         let hard = parse_variant("hard").expect("parses");
         assert_eq!(
             hard,
-            parse_variant("shadows,edge,covered-tag,cloth,fill-light").expect("parses")
+            parse_variant("shadows,edge,covered-tag,cloth,fill-light,high-camera").expect("parses")
         );
         let e = parse_variant("shadows,sun")
             .expect_err("unknown")

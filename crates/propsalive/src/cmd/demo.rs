@@ -29,7 +29,7 @@ pub struct Args {
     #[arg(long, default_value_t = 49)]
     pub frames: u32,
     /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
-    /// `cloth`, `fill-light`, or `hard` (all of them).
+    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them).
     #[arg(long, default_value = "default")]
     pub scene: String,
 }

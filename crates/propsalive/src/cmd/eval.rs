@@ -31,8 +31,8 @@ pub struct Args {
     #[arg(long, default_value_t = 2)]
     pub stride: u32,
     /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
-    /// `cloth`, `fill-light`, or `hard` (all of them). A variant that names a table (`cloth`)
-    /// runs on that table only; otherwise on wood and plain.
+    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them). A variant that names a
+    /// table (`cloth`) runs on that table only; otherwise on wood and plain.
     #[arg(long, default_value = "default")]
     pub scene: String,
 }
