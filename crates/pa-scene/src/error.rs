@@ -34,6 +34,9 @@ pub enum SceneError {
     /// The clean plate's image.
     #[error("{0}")]
     Diminish(pa_diminish::DiminishError),
+    /// A scene variant name that does not exist (`--scene`).
+    #[error("unknown scene variant \"{name}\" (known: {known})")]
+    UnknownVariant { name: String, known: String },
     /// A file of an external set (manifest, image) or of its kit.
     #[error("{}: {problem}", file.display())]
     Set {

@@ -21,7 +21,7 @@ use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use crate::flicker::{flicker_region, Flicker, EDGE_MARGIN_PX};
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
-use crate::scene::{marker_from_prop, Scene, SceneFrame, SceneSpec};
+use crate::scene::{Scene, SceneFrame, SceneSpec};
 use crate::SceneError;
 
 /// Metrics of one frame.
@@ -177,7 +177,7 @@ pub fn pipeline_for(
         scene.model.clone(),
         0,
         camera,
-        marker_from_prop(),
+        scene.marker_from_prop(),
         Some(tracker),
         settings,
     )?;

@@ -4,8 +4,11 @@
 //! neck turn, a nod and a jaw) as a GLB that goes through the same loader as users' models.
 //! [`scene`] puts it on an AprilTag board on a textured table under a light, and renders what a
 //! moving camera sees: the physical key prop (the input), the in-between poses as if printed
-//! (the ground truth), and a clean plate. [`methods`] lists the pipeline configurations
-//! `propsalive eval` compares. [`set`] reads takes of the same set rendered by another renderer
+//! (the ground truth), and a clean plate. [`variant`] is what real sets have beyond the default
+//! set (soft cast and contact shadows, the prop across the sheet's edge or on a tag, woven
+//! cloth, a fill light) and the named variants of `--scene`; [`shadow`] computes the prop's
+//! shadows on the table plane. [`methods`] lists the pipeline configurations `propsalive
+//! eval` compares. [`set`] reads takes of the same set rendered by another renderer
 //! (Blender) and measures them the same way; [`flicker`] is the temporal metric of the fill.
 
 mod error;
@@ -15,11 +18,14 @@ pub mod methods;
 pub mod prop;
 pub mod scene;
 pub mod set;
+pub mod shadow;
 pub mod tracking;
+pub mod variant;
 
 pub use error::{SceneError, SetProblem};
 pub use prop::{prop_glb, prop_model, PropSpec};
 pub use scene::{Scene, SceneFrame, SceneSpec};
+pub use variant::{parse_variant, Placement, SceneVariant, SetOptions};
 
 #[cfg(test)]
 mod tests {

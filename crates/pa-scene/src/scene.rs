@@ -7,6 +7,10 @@
 //!   had been printed and shot (what the paper's authors wanted and never had);
 //! - the **clean plate** (once): the set without the prop, from a reference view.
 //!
+//! [`SceneSpec::set`] adds what real sets have (soft cast and contact shadows, the prop across
+//! the sheet's edge or on a tag, a fill light; [`crate::variant`]), and [`Background::Cloth`] a
+//! woven table; by default the set is exactly the original one.
+//!
 //! World space is the marker (board) frame of `pa-track`: origin at the board centre, +X right,
 //! +Y down the printed page, +Z into the table, metres. The prop stands at the origin with
 //! `marker_from_prop` (prop +Y up -> marker -Z, prop front +Z -> marker +Y).
@@ -23,6 +27,8 @@ use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
 use crate::prop::{prop_model, value_noise, PropSpec};
+use crate::variant::{fill_light, shadow_lights, PlaneLighting, SetOptions, CONTACT};
+use crate::shadow::PlaneShadows;
 use crate::SceneError;
 
 /// Table surface texture.
@@ -32,6 +38,9 @@ pub enum Background {
     Wood,
     /// A nearly uniform grey cloth: the paper's "solid colours" case.
     Plain,
+    /// A woven cloth: a plain weave of 4.7 mm threads with coloured bands (a tablecloth),
+    /// structure the fill must continue across the hole.
+    Cloth,
 }
 
 /// How the camera moves.
@@ -62,6 +71,8 @@ pub struct SceneSpec {
     /// Samples per pixel side of the camera and ground-truth images (`s x s` samples box-
     /// filtered in linear light, as a sensor integrates over its pixel area; 1 = aliased).
     pub supersample: u32,
+    /// What a real set adds (shadows, placement, fill light); all off by default.
+    pub set: SetOptions,
 }
 
 impl Default for SceneSpec {
@@ -78,6 +89,7 @@ impl Default for SceneSpec {
             camera_path: CameraPath::Handheld,
             prop: PropSpec::default(),
             supersample: 2,
+            set: SetOptions::default(),
         }
     }
 }
@@ -168,6 +180,7 @@ pub fn table_texture(background: Background, px: u32, seed: u32) -> CpuTexture {
                 Background::Plain => {
                     Vec3::splat(0.55 + 0.03 * value_noise(u * 50.0, v * 50.0, seed))
                 }
+                Background::Cloth => cloth(x, y, u, v, seed),
             };
             let to8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
             rgba8.extend_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
@@ -178,6 +191,32 @@ pub fn table_texture(background: Background, px: u32, seed: u32) -> CpuTexture {
         height: px,
         rgba8,
     }
+}
+
+/// One texel of the woven cloth: a plain weave (warp over weft on alternate cells) of threads
+/// 6 texels wide, each thread rounded across its width, cream with red warp bands and blue
+/// weft bands every 12 threads.
+fn cloth(x: u32, y: u32, u: f32, v: f32, seed: u32) -> Vec3 {
+    const PITCH: u32 = 6;
+    let (i, j) = (x / PITCH, y / PITCH);
+    let (fx, fy) = (
+        ((x % PITCH) as f32 + 0.5) / PITCH as f32,
+        ((y % PITCH) as f32 + 0.5) / PITCH as f32,
+    );
+    let cream = Vec3::new(0.78, 0.72, 0.6);
+    let thread = |k: u32, band: Vec3, s: u32| {
+        let c = if k % 12 < 3 { band } else { cream };
+        c * (0.9 + 0.2 * value_noise(k as f32 * 0.7, 0.5, seed + s))
+    };
+    let warp_on_top = (i + j) % 2 == 0;
+    let (c, across) = if warp_on_top {
+        (thread(i, Vec3::new(0.62, 0.16, 0.12), 3), fx)
+    } else {
+        (thread(j, Vec3::new(0.16, 0.22, 0.5), 4), fy)
+    };
+    let round = (std::f32::consts::PI * across).sin().sqrt();
+    let fuzz = value_noise(u * 700.0, v * 700.0, seed + 5);
+    c * (0.62 + 0.3 * round + 0.08 * fuzz)
 }
 
 /// Side of the table quad, metres.
@@ -223,7 +262,16 @@ pub fn board_texture(board: &Board, px: u32) -> Result<CpuTexture, SceneError> {
     })
 }
 
-fn quad(half_w: f32, half_h: f32, z: f32) -> CpuMesh {
+/// A quad in the plane z, normal up (-Z). `lit`: wound so that the camera above sees its
+/// front face and the renderer lights it with the directional light; otherwise the original
+/// winding, whose front face points into the table, so that the renderer flips the normal
+/// and the plane receives the ambient light only (the default set, kept as it was).
+fn quad(half_w: f32, half_h: f32, z: f32, lit: bool) -> CpuMesh {
+    let indices = if lit {
+        vec![0, 2, 1, 0, 3, 2]
+    } else {
+        vec![0, 1, 2, 0, 2, 3]
+    };
     CpuMesh {
         positions: vec![
             [-half_w, -half_h, z],
@@ -233,7 +281,7 @@ fn quad(half_w: f32, half_h: f32, z: f32) -> CpuMesh {
         ],
         normals: vec![[0.0, 0.0, -1.0]; 4],
         uvs: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
-        indices: vec![0, 1, 2, 0, 2, 3],
+        indices,
         ..Default::default()
     }
 }
@@ -280,11 +328,14 @@ impl Scene {
             Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)?;
         let board = set_board();
         let twin = GpuTwin::upload(renderer, &model)?;
-        let table_mesh = renderer.upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005))?;
+        // A set with shadows or a second light lights its table (a shadow needs a light to
+        // take away).
+        let lit = spec.set.shadows || spec.set.fill_light;
+        let table_mesh = renderer.upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005, lit))?;
         let table_tex =
             renderer.upload_texture(&table_texture(spec.background, 2048, spec.seed as u32))?;
         let sheet_mesh =
-            renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0))?;
+            renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0, lit))?;
         let sheet_tex = renderer.upload_texture(&board_texture(&board, 2080)?)?;
         let path = camera_path(&spec);
         Ok(Self {
@@ -315,6 +366,47 @@ impl Scene {
             .unwrap_or(0)
     }
 
+    /// The prop's placement on the marker: [`marker_from_prop`] moved to
+    /// [`crate::Placement::offset_m`].
+    pub fn marker_from_prop(&self) -> Mat4 {
+        let offset = self.spec.set.placement.offset_m();
+        if offset == glam::Vec2::ZERO {
+            marker_from_prop()
+        } else {
+            Mat4::from_translation(offset.extend(0.0)) * marker_from_prop()
+        }
+    }
+
+    /// The posed prop's triangles in the marker frame at animation time `time_s` (the shadow
+    /// casters).
+    pub fn prop_triangles(&self, time_s: f32) -> Vec<[Vec3; 3]> {
+        let pose = anim::sample(&self.model, 0, time_s);
+        let marker_from_prop = self.marker_from_prop();
+        let mut tris = Vec::new();
+        for posed in pa_model::skin::pose_meshes(&self.model, &pose) {
+            let prim = &self.model.meshes[posed.mesh].primitives[posed.primitive];
+            let p: Vec<Vec3> = posed
+                .positions
+                .iter()
+                .map(|&v| marker_from_prop.transform_point3(v))
+                .collect();
+            let sequential: Vec<u32>;
+            let indices = if prim.indices.is_empty() {
+                sequential = (0..p.len() as u32).collect();
+                &sequential
+            } else {
+                &prim.indices
+            };
+            for t in indices.chunks_exact(3) {
+                let at = |k: u32| p.get(k as usize).copied();
+                if let (Some(a), Some(b), Some(c)) = (at(t[0]), at(t[1]), at(t[2])) {
+                    tris.push([a, b, c]);
+                }
+            }
+        }
+        tris
+    }
+
     /// True `camera_from_marker` of frame `i`.
     pub fn camera_from_marker(&self, i: u32) -> Mat4 {
         self.path[(i as usize).min(self.path.len().saturating_sub(1))]
@@ -342,17 +434,58 @@ impl Scene {
         let mut draws = vec![table, sheet];
         if let Some(t) = prop_time_s {
             let pose = anim::sample(&self.model, 0, t);
-            frame = self.twin.frame(&self.model, &pose, marker_from_prop());
+            frame = self.twin.frame(&self.model, &pose, self.marker_from_prop());
             draws.extend(self.twin.draws(&frame));
         }
-        let full = renderer.render(
+        let lighting = set_lighting();
+        let mut full = renderer.render(
             &camera,
-            Some(&set_lighting()),
+            Some(&lighting),
             &draws,
             [0.1, 0.1, 0.12, 1.0],
             w,
             h,
         )?;
+        let set = self.spec.set;
+        if set.shadows || set.fill_light {
+            // The fill light's own pass (no ambient), added in linear light.
+            let fill = set.fill_light.then(fill_light);
+            let fill_frame = match &fill {
+                Some(f) => Some(renderer.render(
+                    &camera,
+                    Some(&Lighting {
+                        ambient_rgb: [0.0; 3],
+                        directional: Some(*f),
+                    }),
+                    &draws,
+                    [0.0, 0.0, 0.0, 1.0],
+                    w,
+                    h,
+                )?),
+                None => None,
+            };
+            let mut lights = Vec::new();
+            if let Some(key) = &lighting.directional {
+                lights.push(key);
+            }
+            lights.extend(fill.as_ref());
+            let shadows = match (set.shadows, prop_time_s, lighting.directional) {
+                (true, Some(t), Some(key)) => Some(PlaneShadows::compute(
+                    &self.prop_triangles(t),
+                    &shadow_lights(&key, fill.as_ref()),
+                    Some(&CONTACT),
+                )),
+                _ => None,
+            };
+            crate::variant::relight(
+                &mut full,
+                fill_frame.as_ref(),
+                &PlaneLighting::new(lighting.ambient_rgb, &lights),
+                shadows.as_ref(),
+                &camera.intrinsics,
+                camera_from_marker,
+            );
+        }
         Ok(downsample(&full, s))
     }
 
@@ -398,7 +531,7 @@ impl Scene {
             far_m: FAR_M,
         };
         let pose = anim::sample(&self.model, 0, prop_time_s);
-        let frame = self.twin.frame(&self.model, &pose, marker_from_prop());
+        let frame = self.twin.frame(&self.model, &pose, self.marker_from_prop());
         let r = renderer.render(
             &camera,
             None,
@@ -480,6 +613,9 @@ pub fn downsample(frame: &RenderedFrame, s: u32) -> RenderedFrame {
     }
 }
 
+/// How much higher the camera looks down with [`SetOptions::high_camera`], degrees.
+pub const HIGH_CAMERA_RAISE_DEG: f32 = 24.0;
+
 /// The camera path: an arc in front of the prop with handheld jitter (or a fixed view).
 fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
     let mut rng = Rng::new(spec.seed);
@@ -494,6 +630,15 @@ fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
         })
         .collect();
     let target = Vec3::new(0.0, 0.0, -0.1);
+    // The camera follows the prop (the default prop stands at the origin: nothing added).
+    let offset = spec.set.placement.offset_m();
+    let shift = |p: Vec3| {
+        if offset == glam::Vec2::ZERO {
+            p
+        } else {
+            p + offset.extend(0.0)
+        }
+    };
     (0..spec.frames.max(1))
         .map(|i| {
             let u = if spec.frames > 1 {
@@ -501,10 +646,13 @@ fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
             } else {
                 0.0
             };
-            let (azimuth_deg, elevation_deg, distance_m, jitter) = match spec.camera_path {
+            let (azimuth_deg, mut elevation_deg, distance_m, jitter) = match spec.camera_path {
                 CameraPath::Handheld => (-18.0 + 36.0 * u, 28.0 + 6.0 * u, 0.55 - 0.05 * u, 1.0),
                 CameraPath::Static => (0.0, 30.0, 0.55, 0.0),
             };
+            if spec.set.high_camera {
+                elevation_deg += HIGH_CAMERA_RAISE_DEG;
+            }
             let t = i as f32 / 24.0;
             let j = |k: usize| {
                 let (f, p, a) = waves[k];
@@ -521,7 +669,7 @@ fn camera_path(spec: &SceneSpec) -> Vec<Mat4> {
             );
             let look = target + Vec3::new(0.004 * j(3), 0.004 * j(4), 0.004 * j(5));
             let up = Vec3::new(0.03 * j(6), 0.0, -1.0).normalize();
-            camera_from_world_look_at(eye, look, up).unwrap_or(Mat4::IDENTITY)
+            camera_from_world_look_at(shift(eye), shift(look), up).unwrap_or(Mat4::IDENTITY)
         })
         .collect()
 }

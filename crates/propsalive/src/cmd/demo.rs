@@ -28,6 +28,10 @@ pub struct Args {
     /// Frames to generate (the clip is 49 frames at 24 fps).
     #[arg(long, default_value_t = 49)]
     pub frames: u32,
+    /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
+    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them).
+    #[arg(long, default_value = "default")]
+    pub scene: String,
 }
 
 fn save_png(path: &Path, w: u32, h: u32, rgba: &[u8]) -> Result<()> {
@@ -54,12 +58,17 @@ pub fn run(args: Args) -> Result<()> {
         std::fs::create_dir_all(args.out.join(sub))
             .with_context(|| format!("creating {}", args.out.join(sub).display()))?;
     }
-    let spec = SceneSpec {
+    let variant = pa_scene::parse_variant(&args.scene)?;
+    let mut spec = SceneSpec {
         width: w,
         height: h,
         frames: args.frames.max(1),
+        set: variant.set,
         ..SceneSpec::default()
     };
+    if let Some(b) = variant.background {
+        spec.background = b;
+    }
     let glb = pa_scene::prop_glb(&spec.prop).map_err(anyhow::Error::msg)?;
     pa_model::export::write_atomic(&args.out.join("prop.glb"), &glb)?;
     let mut renderer = Renderer::new()?;
@@ -134,6 +143,11 @@ pub fn run(args: Args) -> Result<()> {
         median(metrics.iter().map(|m| m.trans_err_mm)).unwrap_or(f64::NAN),
         median(metrics.iter().map(|m| Some(m.timings.total_ms()))).unwrap_or(f64::NAN),
     );
+    // The default set's report is unchanged; a variant says which set it is.
+    let mut report = report;
+    if !(variant.set.is_default() && variant.background.is_none()) {
+        let _ = write!(report, "\nSet: `--scene {}`.\n", args.scene);
+    }
     pa_model::export::write_atomic(&args.out.join("report.md"), report.as_bytes())?;
     out!("{report}");
     outln!("\nwrote to {}:", args.out.display());

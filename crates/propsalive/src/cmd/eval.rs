@@ -41,6 +41,11 @@ pub struct Args {
     pub stride: u32,
     #[command(flatten)]
     pub set: set::SetArgs,
+    /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
+    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them). A variant that names a
+    /// table (`cloth`) runs on that table only; otherwise on wood and plain.
+    #[arg(long, default_value = "default")]
+    pub scene: String,
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -61,6 +66,19 @@ pub fn run(args: Args) -> Result<()> {
     if !args.set.set.is_empty() {
         return set::run_sets(&args);
     }
+    let variant = pa_scene::parse_variant(&args.scene)?;
+    let backgrounds = match variant.background {
+        Some(b) => vec![b],
+        None => vec![Background::Wood, Background::Plain],
+    };
+    // Rows say which set they were measured on, unless it is the default set.
+    let label = |b: Background| {
+        if variant.set.is_default() && variant.background.is_none() {
+            format!("{b:?}")
+        } else {
+            format!("{b:?} ({})", args.scene)
+        }
+    };
     let mut renderer = Renderer::new()?;
     errln!("renderer: {}", renderer.adapter_info());
     let stride = args.stride;
@@ -68,7 +86,7 @@ pub fn run(args: Args) -> Result<()> {
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(stride as usize)).collect();
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
-    for background in [Background::Wood, Background::Plain] {
+    for (bi, &background) in backgrounds.iter().enumerate() {
         for m in methods() {
             let mut all = Vec::new();
             let mut seed_of = Vec::new();
@@ -80,6 +98,7 @@ pub fn run(args: Args) -> Result<()> {
                     background,
                     camera_path: m.camera_path,
                     key_frames: m.key_frames.clone(),
+                    set: variant.set,
                     ..SceneSpec::default()
                 };
                 errln!("{background:?} seed {seed}: {}", m.name);
@@ -94,7 +113,7 @@ pub fn run(args: Args) -> Result<()> {
                 all.extend(r);
             }
             rows.push(MethodRow {
-                background: format!("{background:?}"),
+                background: label(background),
                 method: m.name.to_string(),
                 prop_psnr_db: mean(all.iter().map(|f| f.psnr_prop)),
                 prop_ssim: mean(all.iter().map(|f| f.ssim_prop)),
@@ -109,7 +128,7 @@ pub fn run(args: Args) -> Result<()> {
                 flicker_truth: mean(all.iter().map(|f| f.flicker.map(|x| x.1))),
                 frames: all.len(),
             });
-            if background == Background::Wood
+            if bi == 0
                 && (m.name.starts_with("ours:")
                     || m.name.starts_with("ours, two")
                     || m.name.starts_with("paper"))
