@@ -9,6 +9,7 @@ pub mod composite;
 pub mod cpu_twin;
 pub mod framing;
 pub mod metrics;
+pub mod register;
 pub mod shading;
 pub mod shot;
 pub mod shot_config;
