@@ -353,6 +353,9 @@ fn write_keeps_comments_and_backs_up_without_overwriting() {
         "{text}"
     );
 
+    assert_eq!(write::placement_scale(&text), Some(1.02));
+    assert_eq!(write::placement_scale(SHOT), None);
+
     // A shot without [placement] gets one; a broken file is refused and left alone.
     let no_placement = &SHOT[..SHOT.find("# where").expect("placement")];
     let edited = write::placement_edited(no_placement, &path, &p, false).expect("edited");

@@ -82,6 +82,14 @@ pub fn placement_edited(
     Ok(out)
 }
 
+/// `[placement] scale` of a shot's text, when it has a positive finite one.
+pub fn placement_scale(text: &str) -> Option<f64> {
+    let doc: DocumentMut = text.parse().ok()?;
+    let v = doc.get("placement")?.get("scale")?;
+    let s = v.as_float().or_else(|| v.as_integer().map(|i| i as f64))?;
+    (s.is_finite() && s > 0.0).then_some(s)
+}
+
 /// The first free backup name of `shot`: `SHOT.bak`, then `SHOT.bak.1`, `SHOT.bak.2`, ...
 fn backup_names(shot: &Path) -> impl Iterator<Item = PathBuf> + '_ {
     (0..1000).map(move |i| {

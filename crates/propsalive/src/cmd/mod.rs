@@ -8,6 +8,7 @@ pub mod export;
 pub mod inspect;
 pub mod marker;
 pub mod preview;
+pub mod register;
 pub mod render;
 pub mod run;
 pub mod track;
