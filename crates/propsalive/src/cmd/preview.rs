@@ -102,6 +102,9 @@ pub struct Args {
     /// Start with the animation paused.
     #[arg(long)]
     pub paused: bool,
+    /// Start in placement mode (`P`): the key pose's outline and the nudge keys.
+    #[arg(long)]
+    pub place: bool,
     /// Overlays on at start, comma-separated: axes, masks, onion, lineup, help.
     #[arg(long, value_delimiter = ',')]
     pub overlays: Vec<String>,
@@ -852,6 +855,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     let (placer, placement) = place::Placer::new(args.shot.clone(), &shot_placement);
     state.set_placement(placement);
+    state.placing = args.place;
     let log = args.log.as_deref().map(JsonLog::create).transpose()?;
     let fill = pipeline.settings.fill;
     let captures = Captures::open(&args.capture_dir);
