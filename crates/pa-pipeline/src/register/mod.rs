@@ -261,8 +261,8 @@ pub struct Registration {
 /// agreeing points, full resolution) per unit along a direction of the parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Conditioning {
-    /// Px per mm along the weakest direction of the translation (and scale, in percent),
-    /// the yaw marginalised out.
+    /// Px per mm along the weakest direction of the translation, the yaw (and scale)
+    /// marginalised out.
     pub translation_weakest: f64,
     /// That direction in words (`y 84%, lift 16%`).
     pub weakest_direction: String,
@@ -270,6 +270,8 @@ pub struct Conditioning {
     pub translation_strongest: f64,
     /// Px per degree of yaw, the translation marginalised out.
     pub yaw_px_per_deg: f64,
+    /// Px per percent of scale, the others marginalised out (when the scale is refined).
+    pub scale_px_per_pct: Option<f64>,
 }
 
 impl Conditioning {
@@ -645,7 +647,7 @@ fn marginal(h: &[[f64; 5]; 5], n: usize, keep: &[usize]) -> [[f64; 5]; 5] {
 /// The [`Conditioning`] of `h` over `count` agreeing points.
 fn conditioning(h: &[[f64; 5]; 5], n: usize, count: usize) -> Conditioning {
     let count = count.max(1) as f64;
-    let keep: Vec<usize> = (0..n).filter(|&i| i != 3).collect();
+    let keep = [0usize, 1, 2];
     let t = marginal(h, n, &keep);
     let (values, vectors) = jacobi_eigen(&t, keep.len());
     let m = keep.len();
@@ -664,11 +666,13 @@ fn conditioning(h: &[[f64; 5]; 5], n: usize, count: usize) -> Conditioning {
         .map(|(a, i)| format!("{} {:.0}%", NAMES[*i], a * a * 100.0))
         .collect();
     let yaw = marginal(h, n, &[3])[0][0];
+    let scale = (n > 4).then(|| (marginal(h, n, &[4])[0][0].max(0.0) / count).sqrt());
     Conditioning {
         translation_weakest: (lmin.max(0.0) / count).sqrt(),
         weakest_direction: words.join(", "),
         translation_strongest: (lmax.max(0.0) / count).sqrt(),
         yaw_px_per_deg: (yaw.max(0.0) / count).sqrt(),
+        scale_px_per_pct: scale,
     }
 }
 

@@ -185,6 +185,31 @@ fn recovers_the_true_placement_from_a_perturbed_start() {
     }
 }
 
+/// With `refine_scale`, a model 2.5% too large is brought back to its true size.
+#[test]
+fn refines_the_scale_when_asked() {
+    let mut set = set();
+    let vs = views(&mut set, 6, 80.0, true);
+    let model = &set.scene.model;
+    let key = pa_model::anim::sample(model, 0, 0.0);
+    let start = truth().with_delta(&[4.0, -3.0, 1.0, 4.0, 2.5]);
+    let settings = RegisterSettings {
+        refine_scale: true,
+        ..Default::default()
+    };
+    let r = register(model, &key, start, &vs, &settings).expect("register");
+    let d = r.placement.change_from(&truth());
+    assert!(d[4].abs() < 0.5, "scale off by {}%: {d:?}", d[4]);
+    assert!((d[0] * d[0] + d[1] * d[1]).sqrt() < 0.5, "{d:?}");
+    assert!(d[2].abs() < 0.7, "{d:?}");
+    let c = &r.conditioning;
+    assert!(c.scale_px_per_pct.is_some_and(|s| s > 0.1), "{c:?}");
+    // From one direction, size and distance trade off: refused.
+    let same = vec![vs[1].clone(), vs[1].clone(), vs[1].clone()];
+    let e = register(model, &key, start, &same, &settings).expect_err("one direction");
+    assert!(matches!(e, RegisterError::Unconstrained { .. }), "{e}");
+}
+
 #[test]
 fn refusals_say_why() {
     let mut set = set();
