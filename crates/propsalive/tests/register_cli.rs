@@ -148,6 +148,23 @@ fn register_refines_prints_and_writes_in_place() {
         std::fs::read_to_string(root.join("shot.toml.bak.1")).expect("backup 1"),
         written
     );
+
+    // --scale refines the size too and writes it into [placement].
+    let o = register(&shot, &views, &["--scale", "--write"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).expect("utf8");
+    assert!(
+        out.contains("\nscale = ") && out.contains(", scale "),
+        "{out}"
+    );
+    assert!(root.join("shot.toml.bak.2").exists());
+    let written = std::fs::read_to_string(&shot).expect("shot");
+    let line = written
+        .lines()
+        .find(|l| l.starts_with("scale = "))
+        .unwrap_or_else(|| panic!("{written}"));
+    let scale: f64 = line["scale = ".len()..].trim().parse().expect("number");
+    assert!((scale - 1.0).abs() < 0.01, "{written}");
 }
 
 #[test]
