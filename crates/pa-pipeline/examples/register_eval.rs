@@ -1,15 +1,15 @@
 //! Measures `propsalive register` (pa_pipeline::register) on generated views of the built-in
 //! set, where the true placement is known (`pa_scene::scene::marker_from_prop`).
 //!
-//! For each trial the placement is perturbed (x/y within a 10 mm disc, lift within +-3 mm,
-//! yaw within +-10 degrees, seeded), views are rendered around the prop (azimuths spread over
+//! For each trial the placement is perturbed (x/y within a 10 mm disc, lift within
+//! +-`--lift-mm` (3), yaw within +-10 degrees, seeded), views are rendered around the prop (azimuths spread over
 //! `--spread` degrees, elevations alternating +-5 degrees around `--elevation`), tracked with
 //! the real tracker, and registered; the error against the truth is printed.
 //!
 //! ```text
 //! cargo run --release -p pa-pipeline --example register_eval -- [--size 1280x720]
 //!     [--views 10] [--trials 5] [--elevation 30] [--spread 80] [--curve views|elevation]
-//!     [--psnr] [--scale]
+//!     [--psnr] [--scale] [--lift-mm 3]
 //! ```
 //!
 //! `--curve views` repeats the measurement for 2..=10 views (1 view is refused); `--curve
@@ -41,6 +41,7 @@ struct Opts {
     curve: Option<String>,
     psnr: bool,
     scale: bool,
+    lift_mm: f64,
 }
 
 fn opts() -> Opts {
@@ -54,6 +55,7 @@ fn opts() -> Opts {
         curve: None,
         psnr: false,
         scale: false,
+        lift_mm: 3.0,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
@@ -69,6 +71,7 @@ fn opts() -> Opts {
             "--elevation" => o.elevation = v.parse().unwrap(),
             "--spread" => o.spread = v.parse().unwrap(),
             "--curve" => o.curve = Some(v),
+            "--lift-mm" => o.lift_mm = v.parse().unwrap(),
             "--psnr" => {
                 o.psnr = true;
                 i += 1;
@@ -119,13 +122,13 @@ fn truth() -> PlacementParams {
     }
 }
 
-fn perturbed(rng: &mut Rng) -> PlacementParams {
+fn perturbed(rng: &mut Rng, lift_mm: f64) -> PlacementParams {
     let r = 10.0 * rng.f32().sqrt() as f64;
     let a = rng.f32() as f64 * std::f64::consts::TAU;
     truth().with_delta(&[
         r * a.cos(),
         r * a.sin(),
-        (rng.f32() as f64 - 0.5) * 6.0,
+        (rng.f32() as f64 - 0.5) * 2.0 * lift_mm,
         (rng.f32() as f64 - 0.5) * 20.0,
         0.0,
     ])
@@ -161,7 +164,7 @@ fn trial(
         }
     }
     let mut rng = Rng::new(seed);
-    let start = perturbed(&mut rng);
+    let start = perturbed(&mut rng, o.lift_mm);
     let model = &scene.model;
     let key = anim::sample(model, 0, 0.0);
     let settings = RegisterSettings {
@@ -269,11 +272,12 @@ fn main() {
         _ => vec![(o.views, o.elevation)],
     };
     println!(
-        "{}x{}, {} trials per row, azimuth spread {} deg, perturbation: x/y <= 10 mm, lift +-3 mm, yaw +-10 deg{}",
+        "{}x{}, {} trials per row, azimuth spread {} deg, perturbation: x/y <= 10 mm, lift +-{} mm, yaw +-10 deg{}",
         o.width,
         o.height,
         o.trials,
         o.spread,
+        o.lift_mm,
         if o.scale { ", scale refined" } else { "" }
     );
     println!("| views | elevation (deg) | recovered | median xy (mm) | max xy (mm) | median lift (mm) | max lift (mm) | median yaw (deg) | max yaw (deg) | median time (s) |");
