@@ -139,6 +139,8 @@ struct Trial {
     err_z_mm: f64,
     err_yaw_deg: f64,
     seconds: f64,
+    /// CPU seconds (all threads) of the registration.
+    cpu_s: f64,
     result: Result<PlacementParams, String>,
 }
 
@@ -172,8 +174,10 @@ fn trial(
         ..Default::default()
     };
     let t0 = Instant::now();
+    let c0 = cpu_seconds();
     let r = register(model, &key, start, &vs, &settings);
     let seconds = t0.elapsed().as_secs_f64();
+    let cpu_s = cpu_seconds() - c0;
     let t = truth();
     match r {
         Ok(reg) => {
@@ -184,6 +188,7 @@ fn trial(
                     err_z_mm: d[2].abs(),
                     err_yaw_deg: d[3].abs(),
                     seconds,
+                    cpu_s,
                     result: Ok(reg.placement),
                 },
                 start,
@@ -195,11 +200,31 @@ fn trial(
                 err_z_mm: f64::NAN,
                 err_yaw_deg: f64::NAN,
                 seconds,
+                cpu_s,
                 result: Err(e.to_string()),
             },
             start,
         ),
     }
+}
+
+/// CPU time of this process (user + system, all threads), seconds, from /proc/self/stat
+/// (clock ticks of 1/100 s); NaN where it cannot be read.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    let Some((_, rest)) = stat.rsplit_once(')') else {
+        return f64::NAN;
+    };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| {
+        f.get(i)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    // Fields 14 and 15 of the line (utime, stime) are 11 and 12 after the name.
+    (ticks(11) + ticks(12)) / 100.0
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -280,8 +305,8 @@ fn main() {
         o.lift_mm,
         if o.scale { ", scale refined" } else { "" }
     );
-    println!("| views | elevation (deg) | recovered | median xy (mm) | max xy (mm) | median lift (mm) | max lift (mm) | median yaw (deg) | max yaw (deg) | median time (s) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| views | elevation (deg) | recovered | median xy (mm) | max xy (mm) | median lift (mm) | max lift (mm) | median yaw (deg) | max yaw (deg) | median time (s) | median CPU (s) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut last = None;
     for (views, elevation) in rows {
         let mut ts = Vec::new();
@@ -300,7 +325,7 @@ fn main() {
         let z: Vec<f64> = ts.iter().map(|t| t.err_z_mm).collect();
         let yaw: Vec<f64> = ts.iter().map(|t| t.err_yaw_deg).collect();
         println!(
-            "| {views} | {elevation} | {ok}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} |",
+            "| {views} | {elevation} | {ok}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} |",
             ts.len(),
             median(xy.clone()),
             max(&xy),
@@ -309,6 +334,7 @@ fn main() {
             median(yaw.clone()),
             max(&yaw),
             median(ts.iter().map(|t| t.seconds).collect()),
+            median(ts.iter().map(|t| t.cpu_s).collect()),
         );
     }
     if o.psnr {
