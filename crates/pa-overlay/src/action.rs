@@ -35,6 +35,27 @@ pub enum Action {
     /// Print the keys and show them on screen.
     Help,
     Quit,
+    /// Placement mode on or off: the key pose's outline over the frame, and the nudge keys.
+    TogglePlace,
+    /// Move the key prop's placement by one step (`fine`: a small one).
+    Nudge {
+        nudge: Nudge,
+        fine: bool,
+    },
+    /// Register the placement on the last frames seen.
+    Register,
+    /// Write the placement into the shot file.
+    WritePlacement,
+}
+
+/// One step of the placement: along the marker's x or y on the table, the lift (marker z,
+/// negative is up) or the yaw, in the direction of the sign.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Nudge {
+    X(i8),
+    Y(i8),
+    Lift(i8),
+    Yaw(i8),
 }
 
 /// The keys, one line each, as printed at start and on `H` (and drawn on screen).
@@ -54,14 +75,23 @@ pub const HELP: &[&str] = &[
     "PgUp/PgDn     line up an earlier / later capture",
     "C or Enter    capture the composited frame (PNG)",
     "R             start / stop recording (numbered PNGs)",
+    "P             placement: the key pose's outline, and these keys:",
+    "  arrows        move it on the table 2 mm (Shift: 0.5 mm)",
+    "  , .           turn it 1 degree (Shift: 0.2)",
+    "  PgUp/PgDn     lift / lower it 2 mm (Shift: 0.5 mm)",
+    "G             register the placement on the last frames seen",
+    "W             write the placement into the shot file (backup .bak)",
     "H             this help",
     "Q or Esc      quit",
 ];
 
-/// Whether a held key's auto-repeat should repeat the action (stepping and scrubbing do;
-/// toggles, captures and recording do not).
+/// Whether a held key's auto-repeat should repeat the action (stepping, scrubbing and
+/// nudging do; toggles, captures, recording, registering and writing do not).
 pub fn repeats(action: Action) -> bool {
-    matches!(action, Action::Step(_) | Action::Scrub(_))
+    matches!(
+        action,
+        Action::Step(_) | Action::Scrub(_) | Action::Nudge { .. }
+    )
 }
 
 #[cfg(test)]
@@ -77,5 +107,11 @@ mod tests {
         assert!(!repeats(Action::PlayPause));
         assert!(!repeats(Action::CycleFill));
         assert!(!repeats(Action::ToggleShadows));
+        assert!(repeats(Action::Nudge {
+            nudge: Nudge::Yaw(1),
+            fine: true
+        }));
+        assert!(!repeats(Action::Register));
+        assert!(!repeats(Action::WritePlacement));
     }
 }

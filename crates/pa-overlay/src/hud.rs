@@ -9,6 +9,7 @@ use pa_camera::CameraModel;
 
 use crate::action::HELP;
 use crate::draw::{fit_text, text_width, Image, Rgb, BAR, BLUE, GLYPH, GREEN, RED, WHITE, YELLOW};
+use crate::state::PlacementValues;
 
 /// The pipeline's stage timings as the status bar shows them, ms (the fields of
 /// `pa_pipeline::ar::StageTimings`, which this GPU-free crate does not depend on; the preview
@@ -246,6 +247,30 @@ pub fn draw_help(img: &mut Image) {
     draw_panel(img, HELP, WHITE);
 }
 
+/// The placement overlay: the key pose's outline (pixels, computed by the caller) in yellow,
+/// and a line at the bottom of the frame saying where the prop stands (and that `W` writes
+/// it when it differs from the shot file).
+pub fn draw_placement(
+    img: &mut Image,
+    outline: &[(u32, u32)],
+    placement: &PlacementValues,
+    edited: bool,
+) {
+    for &(x, y) in outline {
+        img.put(x as i64, y as i64, YELLOW);
+    }
+    let scale = text_scale(img.width);
+    let mut line = format!("placement  {}", placement.describe());
+    if edited {
+        line.push_str("  (W: write)");
+    }
+    let h = GLYPH * scale + 6;
+    let y = img.height as i64 - h as i64;
+    img.blend_rect(0, y, img.width, h, BAR, 0.75);
+    let max = img.width.saturating_sub(8);
+    img.text(4, y + 3, fit_text(&line, max, scale), scale, YELLOW);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -367,5 +392,26 @@ mod tests {
             .filter(|p| p[..3] == WHITE)
             .count();
         assert!(white > 1000, "{white}");
+    }
+
+    #[test]
+    fn placement_overlay_draws_the_outline_and_the_values() {
+        let mut img = Image::filled(640, 360, [120, 120, 120]);
+        let outline = [(100, 100), (101, 100), (300, 50)];
+        let p = PlacementValues {
+            translation_m: [0.001, 0.0, 0.0],
+            yaw_deg: 3.0,
+        };
+        draw_placement(&mut img, &outline, &p, true);
+        for (x, y) in outline {
+            assert_eq!(img.get(x, y), Some(YELLOW));
+        }
+        // The line at the bottom is yellow text; nothing else in the middle changed.
+        let bottom = (340..360)
+            .flat_map(|y| (0..640).map(move |x| (x, y)))
+            .filter(|&(x, y)| img.get(x, y) == Some(YELLOW))
+            .count();
+        assert!(bottom > 200, "{bottom}");
+        assert_eq!(img.get(320, 200), Some([120, 120, 120]));
     }
 }

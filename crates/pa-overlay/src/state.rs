@@ -3,7 +3,7 @@
 //! [`Action`] into the new state and, for actions with side effects (files, quitting), an
 //! [`Effect`] the window code carries out. Pure, tested without a window.
 
-use crate::action::Action;
+use crate::action::{Action, Nudge};
 use crate::OverlayError;
 
 /// A key pose: an animation frame that exists as a physical prop.
@@ -69,6 +69,58 @@ pub enum Effect {
     /// Turning the line-up on: it needs a capture to show.
     LineUpOn,
     Quit,
+    /// The placement changed: draw the twin there.
+    PlacementChanged,
+    /// Register the placement on the last frames seen (then [`PreviewState::set_placement`]).
+    Register,
+    /// Write the placement into the shot file (then [`PreviewState::placement_written`]).
+    WritePlacement,
+}
+
+/// A normal placement step on the table and in lift (millimetres) and in yaw (degrees).
+pub const STEP_MM: f64 = 2.0;
+pub const STEP_DEG: f64 = 1.0;
+/// A fine step (Shift).
+pub const FINE_STEP_MM: f64 = 0.5;
+pub const FINE_STEP_DEG: f64 = 0.2;
+
+/// Where the key prop stands on the marker, as the preview nudges it (the shot's
+/// `[placement]`: marker-frame translation, metres, and yaw, degrees).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacementValues {
+    pub translation_m: [f64; 3],
+    pub yaw_deg: f64,
+}
+
+impl PlacementValues {
+    /// Moved by one nudge.
+    pub fn nudged(&self, nudge: Nudge, fine: bool) -> Self {
+        let (mm, deg) = if fine {
+            (FINE_STEP_MM, FINE_STEP_DEG)
+        } else {
+            (STEP_MM, STEP_DEG)
+        };
+        let mut p = *self;
+        match nudge {
+            Nudge::X(d) => p.translation_m[0] += d as f64 * mm * 1e-3,
+            Nudge::Y(d) => p.translation_m[1] += d as f64 * mm * 1e-3,
+            Nudge::Lift(d) => p.translation_m[2] += d as f64 * mm * 1e-3,
+            Nudge::Yaw(d) => p.yaw_deg += d as f64 * deg,
+        }
+        p
+    }
+
+    /// One line for the screen: millimetres and degrees.
+    pub fn describe(&self) -> String {
+        let t = self.translation_m;
+        format!(
+            "x {:+.1} mm  y {:+.1} mm  lift {:+.1} mm  yaw {:+.1} deg",
+            t[0] * 1e3,
+            t[1] * 1e3,
+            t[2] * 1e3,
+            self.yaw_deg
+        )
+    }
 }
 
 /// Everything the user controls.
@@ -91,6 +143,12 @@ pub struct PreviewState {
     pub shadows: bool,
     pub overlays: Overlays,
     pub recording: bool,
+    /// Placement mode: the key pose's outline is drawn and the nudge keys move it.
+    pub placing: bool,
+    /// The key prop's placement (`None` until the window code sets it).
+    pub placement: Option<PlacementValues>,
+    /// The placement differs from what the shot file holds.
+    pub placement_edited: bool,
 }
 
 impl PreviewState {
@@ -116,6 +174,9 @@ impl PreviewState {
             shadows: false,
             overlays: Overlays::default(),
             recording: false,
+            placing: false,
+            placement: None,
+            placement_edited: false,
         }
     }
 
@@ -132,6 +193,19 @@ impl PreviewState {
     /// The name of the fill in use.
     pub fn fill_name(&self) -> &str {
         &self.fills[self.fill.min(self.fills.len() - 1)]
+    }
+
+    /// A new placement (a registration's answer): edited unless it is the one already there.
+    pub fn set_placement(&mut self, p: PlacementValues) {
+        if self.placement != Some(p) {
+            self.placement_edited = self.placement.is_some();
+        }
+        self.placement = Some(p);
+    }
+
+    /// The placement was written into the shot file.
+    pub fn placement_written(&mut self) {
+        self.placement_edited = false;
     }
 
     /// Number of frames in the clip.
@@ -237,6 +311,20 @@ impl PreviewState {
                 Effect::PrintHelp
             }
             Action::Quit => Effect::Quit,
+            Action::TogglePlace => {
+                self.placing = !self.placing;
+                Effect::None
+            }
+            Action::Nudge { nudge, fine } => match (self.placing, self.placement) {
+                (true, Some(p)) => {
+                    self.placement = Some(p.nudged(nudge, fine));
+                    self.placement_edited = true;
+                    Effect::PlacementChanged
+                }
+                _ => Effect::None,
+            },
+            Action::Register => Effect::Register,
+            Action::WritePlacement => Effect::WritePlacement,
         }
     }
 
@@ -393,6 +481,62 @@ mod tests {
         assert!(!s.shadows);
         // The status line's flags are unchanged by both.
         assert_eq!(s.flags(), state().flags());
+    }
+
+    #[test]
+    fn placement_mode_nudges_registers_and_writes() {
+        let mut s = state();
+        let nudge = |n, fine| Action::Nudge { nudge: n, fine };
+        // Nothing to nudge until a placement is set, and only in placement mode.
+        assert_eq!(s.apply(nudge(Nudge::X(1), false)), Effect::None);
+        let start = PlacementValues {
+            translation_m: [0.003, -0.004, -0.0009],
+            yaw_deg: 25.0,
+        };
+        s.set_placement(start);
+        assert!(!s.placement_edited);
+        assert_eq!(s.apply(nudge(Nudge::X(1), false)), Effect::None);
+        assert_eq!(s.placement, Some(start));
+        assert_eq!(s.apply(Action::TogglePlace), Effect::None);
+        assert!(s.placing);
+        // Normal steps: 2 mm and 1 degree; fine: 0.5 mm and 0.2 degree.
+        for (n, fine) in [
+            (Nudge::X(1), false),
+            (Nudge::X(-1), true),
+            (Nudge::Y(-1), false),
+            (Nudge::Lift(-1), true),
+            (Nudge::Yaw(1), false),
+            (Nudge::Yaw(-1), true),
+        ] {
+            assert_eq!(s.apply(nudge(n, fine)), Effect::PlacementChanged);
+        }
+        let p = s.placement.expect("placement");
+        let want = [0.003 + 0.002 - 0.0005, -0.004 - 0.002, -0.0009 - 0.0005];
+        for (got, want) in p.translation_m.iter().zip(want) {
+            assert!((got - want).abs() < 1e-12, "{p:?}");
+        }
+        assert!((p.yaw_deg - 25.8).abs() < 1e-12, "{p:?}");
+        assert!(s.placement_edited);
+        assert_eq!(
+            p.describe(),
+            "x +4.5 mm  y -6.0 mm  lift -1.4 mm  yaw +25.8 deg"
+        );
+        assert_eq!(s.apply(Action::WritePlacement), Effect::WritePlacement);
+        s.placement_written();
+        assert!(!s.placement_edited);
+        assert_eq!(s.apply(Action::Register), Effect::Register);
+        s.set_placement(start);
+        assert!(s.placement_edited && s.placement == Some(start));
+        // The same placement again is no edit.
+        s.placement_written();
+        s.set_placement(start);
+        assert!(!s.placement_edited);
+        // Placement mode off: the keys do nothing.
+        s.apply(Action::TogglePlace);
+        assert_eq!(s.apply(nudge(Nudge::Y(1), false)), Effect::None);
+        assert_eq!(s.placement, Some(start));
+        // The flags of the status line are unchanged by placement mode.
+        assert_eq!(s.flags(), "Damol");
     }
 
     #[test]

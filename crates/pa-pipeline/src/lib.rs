@@ -10,6 +10,7 @@ pub mod cpu_twin;
 pub mod footprint;
 pub mod framing;
 pub mod metrics;
+pub mod register;
 pub mod shading;
 pub mod shadow;
 pub mod shot;

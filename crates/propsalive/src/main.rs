@@ -52,6 +52,8 @@ enum Command {
     Calibrate(cmd::calibrate::Args),
     /// Stop-motion take: stills, a video or a camera through the pipeline, resumable.
     Run(cmd::run::Args),
+    /// Refine the key prop's [placement] from frames of it on the marker (--write: into the shot).
+    Register(cmd::register::Args),
     /// Live preview window: the composited view at camera rate, with keys and a status bar.
     #[command(long_about = cmd::preview::long_about())]
     Preview(cmd::preview::Args),
@@ -73,6 +75,7 @@ fn main() -> std::process::ExitCode {
         Command::Calibrate(args) => cmd::calibrate::run(args),
         Command::Run(args) => cmd::run::run(args),
         Command::Preview(args) => cmd::preview::run(args),
+        Command::Register(args) => cmd::register::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

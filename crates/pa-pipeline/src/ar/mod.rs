@@ -207,6 +207,11 @@ impl ArPipeline {
         &self.props[0]
     }
 
+    /// Moves the first prop (the preview's placing of the key prop).
+    pub fn set_first_marker_from_prop(&mut self, marker_from_prop: Mat4) {
+        self.props[0].marker_from_prop = marker_from_prop;
+    }
+
     /// Forgets the tracker's history (state, filter, search region) before a frame that
     /// starts a new sequence; nothing without a tracker.
     pub fn reset_tracker(&mut self) {

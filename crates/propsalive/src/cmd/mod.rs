@@ -9,6 +9,7 @@ pub mod inspect;
 pub mod marker;
 pub mod new;
 pub mod preview;
+pub mod register;
 pub mod render;
 pub mod run;
 pub mod track;

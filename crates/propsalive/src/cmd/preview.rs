@@ -38,6 +38,7 @@
 
 mod keys;
 mod output;
+mod place;
 mod present;
 mod setup;
 mod source;
@@ -101,6 +102,9 @@ pub struct Args {
     /// Start with the animation paused.
     #[arg(long)]
     pub paused: bool,
+    /// Start in placement mode (`P`): the key pose's outline and the nudge keys.
+    #[arg(long)]
+    pub place: bool,
     /// Overlays on at start, comma-separated: axes, masks, onion, lineup, help.
     #[arg(long, value_delimiter = ',')]
     pub overlays: Vec<String>,
@@ -177,6 +181,7 @@ struct Preview {
     frames: u64,
     source_failures: u32,
     last_warning: String,
+    placer: place::Placer,
 }
 
 impl Preview {
@@ -244,6 +249,9 @@ impl Preview {
             }
             Effect::LineUpOn => self.select_capture(0),
             Effect::SelectCapture(d) => self.select_capture(d),
+            Effect::PlacementChanged => self.place_pipeline(),
+            Effect::Register => self.register(),
+            Effect::WritePlacement => self.write_placement(),
         }
         true
     }
@@ -380,6 +388,26 @@ impl Preview {
             let cam = frame_camera(&self.pipeline.camera, w, h);
             hud::draw_axes(img, &cam, pose, self.axes_len_m);
         }
+        if let (true, Some(pose), Some(p)) = (
+            self.state.placing,
+            out.camera_from_marker,
+            self.state.placement,
+        ) {
+            let cam = frame_camera(&self.pipeline.camera, w, h);
+            let prop = self.pipeline.first_prop();
+            let key_frame = self.state.key_pose().frame;
+            let key_s = key_frame as f32 / self.fps;
+            let px = self.placer.outline(
+                &prop.model,
+                || pa_model::anim::sample(&prop.model, prop.animation, key_s),
+                key_frame,
+                &cam,
+                pose,
+                &p,
+                (w, h),
+            );
+            hud::draw_placement(img, &px, &p, self.state.placement_edited);
+        }
         if self.state.overlays.help {
             hud::draw_help(img);
         } else if let Some((msg, at)) = &self.toast {
@@ -468,6 +496,12 @@ impl Preview {
             },
             frame.time_s,
         )?;
+        if let Some(pose) = out.camera_from_marker {
+            let cam = frame_camera(&self.pipeline.camera, frame.width, frame.height);
+            let size = (frame.width, frame.height);
+            self.placer
+                .remember(&frame.label, &frame.rgba8, size, cam, pose);
+        }
         let t_overlay = Instant::now();
         let composited = Image {
             width: frame.width,
@@ -660,7 +694,11 @@ impl App {
             }
             WindowEvent::ModifiersChanged(m) => self.modifiers = m.state(),
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                if let Some(action) = action_for(&event.logical_key, self.modifiers.shift_key()) {
+                if let Some(action) = action_for(
+                    &event.logical_key,
+                    self.modifiers.shift_key(),
+                    self.preview.state.placing,
+                ) {
                     if (!event.repeat || repeats(action)) && !self.preview.act(action) {
                         event_loop.exit();
                     }
@@ -825,6 +863,13 @@ pub fn run(args: Args) -> Result<()> {
         state.playing = false;
     }
     state.overlays = overlays;
+    let shot_placement = match &args.shot {
+        Some(p) => pa_pipeline::shot::Shot::load(p)?.placement,
+        None => pa_pipeline::shot::Placement::default(),
+    };
+    let (placer, placement) = place::Placer::new(args.shot.clone(), &shot_placement);
+    state.set_placement(placement);
+    state.placing = args.place;
     let log = args.log.as_deref().map(JsonLog::create).transpose()?;
     let fill = pipeline.settings.fill;
     let captures = Captures::open(&args.capture_dir);
@@ -855,6 +900,7 @@ pub fn run(args: Args) -> Result<()> {
             frames: 0,
             source_failures: 0,
             last_warning: String::new(),
+            placer,
         },
         instance: Some(instance),
         window_size,

@@ -1,12 +1,19 @@
 //! The preview's key map: a pressed key (winit's logical key) and the modifiers -> an
 //! [`Action`]. Pure, tested without a window.
 
-use pa_overlay::action::Action;
+use pa_overlay::action::{Action, Nudge};
 use winit::keyboard::{Key, NamedKey};
 
 /// The action of a key press; `None` for keys without one. Letters work in either case and
-/// with Caps Lock; `shift` only changes the arrows' step.
-pub fn action_for(key: &Key, shift: bool) -> Option<Action> {
+/// with Caps Lock; `shift` only changes the steps. In placement mode (`placing`) the arrows,
+/// PgUp/PgDn and `,` `.` nudge the placement instead.
+pub fn action_for(key: &Key, shift: bool, placing: bool) -> Option<Action> {
+    if placing {
+        if let Some(nudge) = nudge_for(key) {
+            let fine = shift || matches!(key, Key::Character(c) if c == "<" || c == ">");
+            return Some(Action::Nudge { nudge, fine });
+        }
+    }
     let step = if shift { 10 } else { 1 };
     match key {
         Key::Named(named) => match named {
@@ -43,9 +50,28 @@ pub fn action_for(key: &Key, shift: bool) -> Option<Action> {
                 'r' => Some(Action::ToggleRecording),
                 'h' | '?' => Some(Action::Help),
                 'q' => Some(Action::Quit),
+                'p' => Some(Action::TogglePlace),
+                'g' => Some(Action::Register),
+                'w' => Some(Action::WritePlacement),
                 _ => None,
             }
         }
+        _ => None,
+    }
+}
+
+/// The placement nudge of a key: arrows on the table (marker x, y), PgUp/PgDn the lift (up
+/// is marker -z), `,` `.` (`<` `>` with Shift) the yaw.
+fn nudge_for(key: &Key) -> Option<Nudge> {
+    match key {
+        Key::Named(NamedKey::ArrowLeft) => Some(Nudge::X(-1)),
+        Key::Named(NamedKey::ArrowRight) => Some(Nudge::X(1)),
+        Key::Named(NamedKey::ArrowUp) => Some(Nudge::Y(-1)),
+        Key::Named(NamedKey::ArrowDown) => Some(Nudge::Y(1)),
+        Key::Named(NamedKey::PageUp) => Some(Nudge::Lift(-1)),
+        Key::Named(NamedKey::PageDown) => Some(Nudge::Lift(1)),
+        Key::Character(c) if c == "," || c == "<" => Some(Nudge::Yaw(-1)),
+        Key::Character(c) if c == "." || c == ">" => Some(Nudge::Yaw(1)),
         _ => None,
     }
 }
@@ -62,16 +88,16 @@ mod tests {
     fn arrows_step_one_or_ten() {
         let left = Key::Named(NamedKey::ArrowLeft);
         let right = Key::Named(NamedKey::ArrowRight);
-        assert_eq!(action_for(&left, false), Some(Action::Step(-1)));
-        assert_eq!(action_for(&right, false), Some(Action::Step(1)));
-        assert_eq!(action_for(&left, true), Some(Action::Step(-10)));
-        assert_eq!(action_for(&right, true), Some(Action::Step(10)));
+        assert_eq!(action_for(&left, false, false), Some(Action::Step(-1)));
+        assert_eq!(action_for(&right, false, false), Some(Action::Step(1)));
+        assert_eq!(action_for(&left, true, false), Some(Action::Step(-10)));
+        assert_eq!(action_for(&right, true, false), Some(Action::Step(10)));
         assert_eq!(
-            action_for(&Key::Named(NamedKey::Home), false),
+            action_for(&Key::Named(NamedKey::Home), false, false),
             Some(Action::First)
         );
         assert_eq!(
-            action_for(&Key::Named(NamedKey::End), false),
+            action_for(&Key::Named(NamedKey::End), false, false),
             Some(Action::Last)
         );
     }
@@ -91,10 +117,13 @@ mod tests {
             ("r", Action::ToggleRecording),
             ("h", Action::Help),
             ("q", Action::Quit),
+            ("p", Action::TogglePlace),
+            ("g", Action::Register),
+            ("w", Action::WritePlacement),
         ] {
-            assert_eq!(action_for(&ch(k), false), Some(a), "{k}");
+            assert_eq!(action_for(&ch(k), false, false), Some(a), "{k}");
             assert_eq!(
-                action_for(&ch(&k.to_uppercase()), true),
+                action_for(&ch(&k.to_uppercase()), true, false),
                 Some(a),
                 "{k} shifted"
             );
@@ -103,29 +132,76 @@ mod tests {
 
     #[test]
     fn the_other_keys() {
-        assert_eq!(action_for(&ch("["), false), Some(Action::Scrub(-1)));
-        assert_eq!(action_for(&ch("]"), false), Some(Action::Scrub(1)));
+        assert_eq!(action_for(&ch("["), false, false), Some(Action::Scrub(-1)));
+        assert_eq!(action_for(&ch("]"), false, false), Some(Action::Scrub(1)));
         // Shift+[ types '{' on US layouts.
-        assert_eq!(action_for(&ch("{"), true), Some(Action::Scrub(-10)));
+        assert_eq!(action_for(&ch("{"), true, false), Some(Action::Scrub(-10)));
         assert_eq!(
-            action_for(&Key::Named(NamedKey::Space), false),
+            action_for(&Key::Named(NamedKey::Space), false, false),
             Some(Action::PlayPause)
         );
         assert_eq!(
-            action_for(&Key::Named(NamedKey::Enter), false),
+            action_for(&Key::Named(NamedKey::Enter), false, false),
             Some(Action::Capture)
         );
         assert_eq!(
-            action_for(&Key::Named(NamedKey::Escape), false),
+            action_for(&Key::Named(NamedKey::Escape), false, false),
             Some(Action::Quit)
         );
         assert_eq!(
-            action_for(&Key::Named(NamedKey::PageUp), false),
+            action_for(&Key::Named(NamedKey::PageUp), false, false),
             Some(Action::SelectCapture(-1))
         );
-        assert_eq!(action_for(&ch("x"), false), None);
-        assert_eq!(action_for(&ch("ab"), false), None);
-        assert_eq!(action_for(&Key::Named(NamedKey::F1), false), None);
-        assert_eq!(action_for(&Key::Dead(None), false), None);
+        assert_eq!(action_for(&ch("x"), false, false), None);
+        assert_eq!(action_for(&ch("ab"), false, false), None);
+        assert_eq!(action_for(&Key::Named(NamedKey::F1), false, false), None);
+        assert_eq!(action_for(&Key::Dead(None), false, false), None);
+    }
+
+    #[test]
+    fn placement_mode_keys_nudge() {
+        let named = |k| Key::Named(k);
+        for (key, nudge) in [
+            (named(NamedKey::ArrowLeft), Nudge::X(-1)),
+            (named(NamedKey::ArrowRight), Nudge::X(1)),
+            (named(NamedKey::ArrowUp), Nudge::Y(-1)),
+            (named(NamedKey::ArrowDown), Nudge::Y(1)),
+            (named(NamedKey::PageUp), Nudge::Lift(-1)),
+            (named(NamedKey::PageDown), Nudge::Lift(1)),
+            (ch(","), Nudge::Yaw(-1)),
+            (ch("."), Nudge::Yaw(1)),
+        ] {
+            assert_eq!(
+                action_for(&key, false, true),
+                Some(Action::Nudge { nudge, fine: false }),
+                "{key:?}"
+            );
+            assert_eq!(
+                action_for(&key, true, true),
+                Some(Action::Nudge { nudge, fine: true }),
+                "{key:?}"
+            );
+        }
+        // Shift+, types '<' on US layouts: a fine step.
+        assert_eq!(
+            action_for(&ch("<"), true, true),
+            Some(Action::Nudge {
+                nudge: Nudge::Yaw(-1),
+                fine: true
+            })
+        );
+        // Outside placement mode the keys keep their meaning.
+        assert_eq!(
+            action_for(&named(NamedKey::ArrowLeft), false, false),
+            Some(Action::Step(-1))
+        );
+        assert_eq!(
+            action_for(&named(NamedKey::PageUp), false, false),
+            Some(Action::SelectCapture(-1))
+        );
+        assert_eq!(action_for(&ch(","), false, false), None);
+        // The other keys work in placement mode too.
+        assert_eq!(action_for(&ch("g"), false, true), Some(Action::Register));
+        assert_eq!(action_for(&ch("K"), true, true), Some(Action::NextKeyPose));
     }
 }
