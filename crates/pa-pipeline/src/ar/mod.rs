@@ -87,6 +87,8 @@ pub struct ArPipeline {
     /// The fill mask, and the region of it the last frame set.
     fill_mask: Option<(Mask, Option<Rect>)>,
     keep_passes: bool,
+    /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
+    patch_prior: Option<fill::PatchState>,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -155,6 +157,7 @@ impl ArPipeline {
             cpu: None,
             fill_mask: None,
             keep_passes: false,
+            patch_prior: None,
         })
     }
 
@@ -202,9 +205,10 @@ impl ArPipeline {
         &self.props[0]
     }
 
-    /// Forgets the tracker's history (state, filter, search region) before a frame that
-    /// starts a new sequence; nothing without a tracker.
+    /// Forgets the tracker's history (state, filter, search region) and the patch fill's
+    /// previous result before a frame that starts a new sequence.
     pub fn reset_tracker(&mut self) {
+        self.patch_prior = None;
         if let Some(tracker) = &mut self.tracker {
             tracker.reset();
         }
