@@ -145,8 +145,8 @@ fn an_oblique_edge_is_continued_straight() {
     );
 }
 
-/// On the wood texture (grain, noise) the patch fill is at least as close to the truth as
-/// the ray fill is.
+/// On the wood texture (grain, noise) the patch fill continues the grain: closer to the truth
+/// than the ray fill's smooth guess by at least 2 dB (measured: 23.3 against 19.5 dB).
 #[test]
 fn wood_is_filled_with_texture() {
     let truth = image_from_rgb(160, 120, |x, y| wood(x, y, 1.0));
@@ -154,7 +154,10 @@ fn wood_is_filled_with_texture() {
     let (_, p_patch) = fill_and_score(&truth, &mask, &patch());
     let (_, p_rays) = fill_and_score(&truth, &mask, &FillMethod::Rays(RayDirections::Eight));
     println!("wood: patch {p_patch:.2} dB, rays {p_rays:.2} dB");
-    assert!(p_patch > 15.0, "patch {p_patch:.2} dB");
+    assert!(
+        p_patch > p_rays + 2.0,
+        "patch {p_patch:.2} vs rays {p_rays:.2} dB"
+    );
 }
 
 #[test]

@@ -64,6 +64,8 @@ pub struct PatchParams {
     pub coarsest_px: u32,
     /// PatchMatch sweeps on the coarsest level, the intermediate levels and the finest level.
     pub sweeps: [u32; 3],
+    /// First radius of the random search on the finest level (halved down to 1; 0: none).
+    pub fine_search_px: u32,
     /// Radius of the final vote on the finest level (0: every hole keeps its match's
     /// colour; 1: the mean of the 3x3 overlapping matches' colours).
     pub vote_radius: u32,
@@ -81,7 +83,8 @@ impl Default for PatchParams {
             temporal_weight: 1.0,
             margin_px: 24,
             coarsest_px: 16,
-            sweeps: [2, 2, 1],
+            sweeps: [2, 1, 0],
+            fine_search_px: 2,
             vote_radius: 1,
             seed: 0x5EED_F111,
         }
@@ -115,6 +118,13 @@ impl PatchParams {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, f64::from(v), "must be finite and >= 0");
             }
+        }
+        if self.fine_search_px > 64 {
+            return bad(
+                "fine_search_px",
+                f64::from(self.fine_search_px),
+                "at most 64",
+            );
         }
         if self.vote_radius > 8 {
             return bad("vote_radius", f64::from(self.vote_radius), "at most 8");
@@ -167,6 +177,7 @@ pub(crate) struct PatchScratch {
     levels: Vec<Level>,
     nnf: Vec<Vec<u32>>,
     votes: Vec<[f32; 3]>,
+    next: Vec<u32>,
 }
 
 /// Fills the pixels of `frame` inside `bbox` whose entry in `to_fill` (local to `bbox`,
@@ -225,9 +236,11 @@ pub(crate) fn patch_fill_region(
             region,
             state,
             fill.prior.as_ref().zip(prior_from_current.as_ref()),
+            // The temporal term only matters on the levels that are searched.
+            usize::from(params.sweeps[2] == 0),
             params.coarsest_px,
         );
-        if scratch.levels[0].sources.is_empty() {
+        if scratch.levels[0].known == 0 {
             return Err(no_boundary);
         }
         let coarsest = scratch.levels.len() - 1;
@@ -241,6 +254,7 @@ pub(crate) fn patch_fill_region(
             &mut scratch.levels,
             &mut scratch.nnf,
             &mut scratch.votes,
+            &mut scratch.next,
             params,
         );
         // Write the finest level's fill back.

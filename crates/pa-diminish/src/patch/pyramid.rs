@@ -2,6 +2,8 @@
 //! (known source, hole to fill, hidden), the prior colours, and the coarsest level's
 //! onion-peel start.
 
+use rayon::prelude::*;
+
 use crate::plate::Homography;
 use crate::types::{ImageRgba8, Mask, Rect};
 
@@ -27,7 +29,9 @@ pub(super) struct Level {
     /// The prior colour of each pixel (valid where `prior_ok`; both empty without a prior).
     pub prior: Vec<[f32; 3]>,
     pub prior_ok: Vec<bool>,
-    /// Indices of the known pixels.
+    /// Number of known pixels.
+    pub known: usize,
+    /// Indices of the known pixels (the coarsest level only; empty on the others).
     pub sources: Vec<u32>,
     /// Indices of the holes, in raster order.
     pub holes: Vec<u32>,
@@ -56,13 +60,26 @@ impl Level {
     fn index(&mut self) {
         self.sources.clear();
         self.holes.clear();
+        self.known = 0;
         for (i, &s) in self.state.iter().enumerate() {
             match s {
-                KNOWN => self.sources.push(i as u32),
+                KNOWN => self.known += 1,
                 HOLE => self.holes.push(i as u32),
                 _ => {}
             }
         }
+    }
+
+    /// Fills `sources` (used by the coarsest level's random start).
+    fn collect_sources(&mut self) {
+        self.sources.clear();
+        self.sources.extend(
+            self.state
+                .iter()
+                .enumerate()
+                .filter(|(_, &s)| s == KNOWN)
+                .map(|(i, _)| i as u32),
+        );
     }
 
     /// The larger side of the holes' bounding box (0 without holes).
@@ -86,13 +103,16 @@ impl Level {
 /// Builds the pyramid of `region` of `frame` into `levels` (level 0 the finest): the state of a
 /// local pixel comes from `state`; a coarse pixel is a hole if any of its 2x2 children is,
 /// else hidden if any child is, else known (its colour the children's mean). Levels are added
-/// while the holes' box is larger than `coarsest_px` and the level larger than 8 x 8.
+/// while the holes' box is larger than `coarsest_px` and the level larger than 8 x 8. The
+/// prior is sampled on level `prior_level` (or the coarsest, if there are fewer levels) and
+/// averaged down from there.
 pub(super) fn build(
     levels: &mut Vec<Level>,
     frame: &ImageRgba8,
     region: Rect,
-    state: impl Fn(usize, usize) -> u8,
+    state: impl Fn(usize, usize) -> u8 + Sync,
     prior: Option<(&PatchPrior<'_>, &Homography)>,
+    prior_level: usize,
     coarsest_px: u32,
 ) {
     let (w, h) = (region.width as usize, region.height as usize);
@@ -100,33 +120,35 @@ pub(super) fn build(
         levels.push(Level::default());
     }
     let l0 = &mut levels[0];
-    l0.reset(w, h, prior.is_some());
+    l0.reset(w, h, false);
     let stride = frame.width() as usize * 4;
     let data = frame.as_slice();
-    for ly in 0..h {
-        for lx in 0..w {
-            let i = ly * w + lx;
-            let s = state(lx, ly);
-            l0.state[i] = s;
-            let (x, y) = (region.x as usize + lx, region.y as usize + ly);
-            if s == KNOWN {
-                let q = y * stride + x * 4;
-                l0.color[i] = [
-                    f32::from(data[q]),
-                    f32::from(data[q + 1]),
-                    f32::from(data[q + 2]),
-                ];
-            } else if s == HOLE {
-                if let Some((p, h)) = prior {
-                    if let Some(c) = sample_prior(p, h, x as f64, y as f64) {
-                        l0.prior[i] = c;
-                        l0.prior_ok[i] = true;
-                    }
+    let (x0, y0) = (region.x as usize, region.y as usize);
+    // Rows in parallel: the states and the known colours, then the holes' prior colours.
+    l0.state
+        .par_chunks_mut(w)
+        .zip(l0.color.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(ly, (states, colors))| {
+            let row = &data[(y0 + ly) * stride + x0 * 4..(y0 + ly) * stride + (x0 + w) * 4];
+            for (lx, ((st, c), px)) in states
+                .iter_mut()
+                .zip(colors.iter_mut())
+                .zip(row.chunks_exact(4))
+                .enumerate()
+            {
+                *st = state(lx, ly);
+                if *st == KNOWN {
+                    *c = [f32::from(px[0]), f32::from(px[1]), f32::from(px[2])];
                 }
             }
+        });
+    l0.index();
+    if prior_level == 0 {
+        if let Some((p, hom)) = prior {
+            sample_level_prior(&mut levels[0], 0, region, p, hom);
         }
     }
-    l0.index();
     let mut n = 1;
     while {
         let last = &levels[n - 1];
@@ -137,25 +159,83 @@ pub(super) fn build(
         }
         let (fine, coarse) = levels.split_at_mut(n);
         downsample(&fine[n - 1], &mut coarse[0]);
+        if coarse[0].known == 0 {
+            // Every coarse pixel touches the hole: stop at the finer level.
+            break;
+        }
+        if n == prior_level {
+            if let Some((p, hom)) = prior {
+                sample_level_prior(&mut coarse[0], n, region, p, hom);
+            }
+        }
         n += 1;
     }
     levels.truncate(n);
+    if let Some(last) = levels.last_mut() {
+        last.collect_sources();
+    }
+    // The pyramid stopped below the prior's level: the prior goes on the coarsest level.
+    if prior_level >= n {
+        if let (Some((p, hom)), Some(last)) = (prior, levels.last_mut()) {
+            sample_level_prior(last, n - 1, region, p, hom);
+        }
+    }
+}
+
+/// Samples the prior for the holes of `lv`, level `level` of the pyramid over `region` (each
+/// pixel at the centre of the full-resolution pixels it covers); rows in parallel.
+fn sample_level_prior(
+    lv: &mut Level,
+    level: usize,
+    region: Rect,
+    p: &PatchPrior<'_>,
+    hom: &Homography,
+) {
+    let w = lv.w;
+    lv.prior.clear();
+    lv.prior.resize(w * lv.h, [0.0; 3]);
+    lv.prior_ok.clear();
+    lv.prior_ok.resize(w * lv.h, false);
+    let scale = (1usize << level) as f64;
+    let (x0, y0) = (f64::from(region.x), f64::from(region.y));
+    let centre = |i: usize, o: f64| o + scale * (i as f64 + 0.5) - 0.5;
+    lv.prior
+        .par_chunks_mut(w)
+        .zip(lv.prior_ok.par_chunks_mut(w))
+        .zip(lv.state.par_chunks(w))
+        .enumerate()
+        .for_each(|(ly, ((prior, ok), states))| {
+            for (lx, st) in states.iter().enumerate() {
+                if *st == HOLE {
+                    if let Some(c) = sample_prior(p, hom, centre(lx, x0), centre(ly, y0)) {
+                        prior[lx] = c;
+                        ok[lx] = true;
+                    }
+                }
+            }
+        });
 }
 
 fn downsample(fine: &Level, coarse: &mut Level) {
     let (w, h) = (fine.w.div_ceil(2), fine.h.div_ceil(2));
     let with_prior = !fine.prior.is_empty();
     coarse.reset(w, h, with_prior);
-    for y in 0..h {
-        for x in 0..w {
-            let (mut any_hole, mut any_hidden) = (false, false);
-            let mut sum = [0.0f32; 3];
-            let mut n = 0.0f32;
-            let mut psum = [0.0f32; 3];
-            let mut pn = 0.0f32;
-            for cy in 2 * y..(2 * y + 2).min(fine.h) {
-                for cx in 2 * x..(2 * x + 2).min(fine.w) {
-                    let c = cy * fine.w + cx;
+    let children = |x: usize, y: usize| {
+        (2 * y..(2 * y + 2).min(fine.h))
+            .flat_map(move |cy| (2 * x..(2 * x + 2).min(fine.w)).map(move |cx| cy * fine.w + cx))
+    };
+    // Rows in parallel.
+    coarse
+        .state
+        .par_chunks_mut(w)
+        .zip(coarse.color.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (states, colors))| {
+            for (x, (st, col)) in states.iter_mut().zip(colors.iter_mut()).enumerate() {
+                let (mut any_hole, mut any_hidden) = (false, false);
+                let mut sum = [0.0f32; 3];
+                let mut n = 0.0f32;
+                for c in children(x, y) {
                     match fine.state[c] {
                         HOLE => any_hole = true,
                         HIDDEN => any_hidden = true,
@@ -164,26 +244,38 @@ fn downsample(fine: &Level, coarse: &mut Level) {
                             n += 1.0;
                         }
                     }
-                    if with_prior && fine.prior_ok[c] {
+                }
+                *st = if any_hole {
+                    HOLE
+                } else if any_hidden {
+                    HIDDEN
+                } else {
+                    KNOWN
+                };
+                if *st == KNOWN && n > 0.0 {
+                    *col = sum.map(|v| v / n);
+                }
+            }
+        });
+    if with_prior {
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if coarse.state[i] != HOLE {
+                    continue;
+                }
+                let mut psum = [0.0f32; 3];
+                let mut pn = 0.0f32;
+                for c in children(x, y) {
+                    if fine.prior_ok[c] {
                         add(&mut psum, fine.prior[c]);
                         pn += 1.0;
                     }
                 }
-            }
-            let i = y * w + x;
-            coarse.state[i] = if any_hole {
-                HOLE
-            } else if any_hidden {
-                HIDDEN
-            } else {
-                KNOWN
-            };
-            if coarse.state[i] == KNOWN && n > 0.0 {
-                coarse.color[i] = sum.map(|v| v / n);
-            }
-            if with_prior && pn > 0.0 && coarse.state[i] == HOLE {
-                coarse.prior[i] = psum.map(|v| v / pn);
-                coarse.prior_ok[i] = true;
+                if pn > 0.0 {
+                    coarse.prior[i] = psum.map(|v| v / pn);
+                    coarse.prior_ok[i] = true;
+                }
             }
         }
     }

@@ -2,6 +2,8 @@
 //! fine, with the PixMix cost (appearance + spatial + temporal).
 
 use super::pyramid::{add, Level, HIDDEN, HOLE, KNOWN, UNSET};
+use rayon::prelude::*;
+
 use super::PatchParams;
 
 /// A small deterministic generator (SplitMix64).
@@ -45,6 +47,7 @@ pub(super) fn solve(
     levels: &mut [Level],
     nnf: &mut Vec<Vec<u32>>,
     votes: &mut Vec<[f32; 3]>,
+    next: &mut Vec<u32>,
     params: &PatchParams,
 ) {
     let n = levels.len();
@@ -74,9 +77,20 @@ pub(super) fn solve(
         let cost = cost_of(params, l);
         // The random search's first radius: the whole level on the coarsest, a few pixels on
         // the finer ones (their start is already good to a pixel or two).
-        let search_r = if coarsest { lv.w.max(lv.h) as i32 } else { 4 };
+        let search_r = if coarsest {
+            lv.w.max(lv.h) as i32
+        } else if l == 0 {
+            params.fine_search_px as i32
+        } else {
+            4
+        };
         for it in 0..sweeps {
-            sweep(lv, field, &cost, it % 2 == 1, search_r, &mut rng);
+            if !coarsest && lv.holes.len() >= PARALLEL_MIN_HOLES {
+                let seed = rng.next_u64();
+                sweep_parallel(lv, field, &cost, search_r, seed, next);
+            } else {
+                sweep(lv, field, &cost, it % 2 == 1, search_r, &mut rng);
+            }
         }
     }
     if let (Some(lv), Some(field)) = (levels.first_mut(), nnf.first()) {
@@ -91,44 +105,55 @@ fn vote(lv: &mut Level, field: &[u32], r: i32, out: &mut Vec<[f32; 3]>) {
     if r == 0 {
         return;
     }
-    let (w, h) = (lv.w as i32, lv.h as i32);
     out.clear();
-    for &p in &lv.holes {
-        let p = p as usize;
-        let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
-        let mut sum = [0.0f32; 3];
-        let mut n = 0.0f32;
-        for dy in -r..=r {
-            for dx in -r..=r {
-                let (qx, qy) = (px + dx, py + dy);
-                if qx < 0 || qy < 0 || qx >= w || qy >= h {
-                    continue;
+    out.resize(lv.holes.len(), [0.0; 3]);
+    {
+        let lv: &Level = lv;
+        out.par_chunks_mut(CHUNK)
+            .zip(lv.holes.par_chunks(CHUNK))
+            .for_each(|(out, holes)| {
+                for (o, &p) in out.iter_mut().zip(holes) {
+                    *o = vote_one(lv, field, r, p as usize);
                 }
-                let q = (qy * w + qx) as usize;
-                if lv.state[q] != HOLE {
-                    continue;
-                }
-                let m = field[q] as i32;
-                let (sx, sy) = (m % w - dx, m / w - dy);
-                if sx < 0 || sy < 0 || sx >= w || sy >= h {
-                    continue;
-                }
-                let s = (sy * w + sx) as usize;
-                if lv.state[s] != KNOWN {
-                    continue;
-                }
-                add(&mut sum, lv.color[s]);
-                n += 1.0;
-            }
-        }
-        out.push(if n > 0.0 {
-            sum.map(|v| v / n)
-        } else {
-            lv.color[p]
-        });
+            });
     }
     for (&p, c) in lv.holes.iter().zip(out.iter()) {
         lv.color[p as usize] = *c;
+    }
+}
+
+fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
+    let (w, h) = (lv.w as i32, lv.h as i32);
+    let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
+    let mut sum = [0.0f32; 3];
+    let mut n = 0.0f32;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let (qx, qy) = (px + dx, py + dy);
+            if qx < 0 || qy < 0 || qx >= w || qy >= h {
+                continue;
+            }
+            let q = (qy * w + qx) as usize;
+            if lv.state[q] != HOLE {
+                continue;
+            }
+            let m = field[q] as i32;
+            let (sx, sy) = (m % w - dx, m / w - dy);
+            if sx < 0 || sy < 0 || sx >= w || sy >= h {
+                continue;
+            }
+            let s = (sy * w + sx) as usize;
+            if lv.state[s] != KNOWN {
+                continue;
+            }
+            add(&mut sum, lv.color[s]);
+            n += 1.0;
+        }
+    }
+    if n > 0.0 {
+        sum.map(|v| v / n)
+    } else {
+        lv.color[p]
     }
 }
 
@@ -236,14 +261,32 @@ fn upsample(
         }
         let s = match s {
             Some(s) => s,
-            None => lv.sources[rng.below(lv.sources.len())] as usize,
+            None => random_known(lv, rng),
         };
         field[p] = s as u32;
         lv.color[p] = lv.color[s];
     }
 }
 
-/// One PatchMatch sweep over the holes (forward, or backward with `reverse`).
+/// A random known pixel of `lv` (which has some): random positions until one is known, then,
+/// after 64 misses, the first known pixel from a random start.
+fn random_known(lv: &Level, rng: &mut Rng) -> usize {
+    let n = lv.state.len();
+    for _ in 0..64 {
+        let i = rng.below(n);
+        if lv.state[i] == KNOWN {
+            return i;
+        }
+    }
+    let start = rng.below(n);
+    (0..n)
+        .map(|k| (start + k) % n)
+        .find(|&i| lv.state[i] == KNOWN)
+        .unwrap_or(start)
+}
+
+/// One PatchMatch sweep over the holes (forward, or backward with `reverse`), in place: each
+/// hole sees the matches its predecessors in the scan just found.
 fn sweep(
     lv: &mut Level,
     field: &mut [u32],
@@ -252,57 +295,112 @@ fn sweep(
     search_r: i32,
     rng: &mut Rng,
 ) {
-    let (w, h) = (lv.w as i32, lv.h as i32);
     let nh = lv.holes.len();
     let d: i32 = if reverse { 1 } else { -1 };
     for k in 0..nh {
         let p = lv.holes[if reverse { nh - 1 - k } else { k }] as usize;
-        let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
-        let mut best = field[p] as usize;
-        let mut best_cost = total_cost(lv, field, cost, p, best, f32::INFINITY);
-        // Propagation from the neighbours visited before p in this sweep.
-        for (nx, ny) in [(px + d, py), (px, py + d)] {
-            if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                continue;
-            }
-            let n = (ny * w + nx) as usize;
-            if lv.state[n] != HOLE {
-                continue;
-            }
-            let m = field[n] as i32;
-            let (sx, sy) = (m % w - (nx - px), m / w - (ny - py));
-            if sx < 0 || sy < 0 || sx >= w || sy >= h {
-                continue;
-            }
-            let s = (sy * w + sx) as usize;
-            if s == best || lv.state[s] != KNOWN {
-                continue;
-            }
+        let best = improve(lv, field, cost, p, &[(d, 0), (0, d)], search_r, rng);
+        field[p] = best as u32;
+        lv.color[p] = lv.color[best];
+    }
+}
+
+/// Levels with at least this many holes (not the coarsest) are swept in parallel.
+const PARALLEL_MIN_HOLES: usize = 8192;
+
+/// Holes a parallel sweep hands to one task (each task has its own generator, seeded by its
+/// chunk's index, so the result does not depend on the number of threads).
+const CHUNK: usize = 2048;
+
+/// One PatchMatch sweep with every hole improved from the field and colours as they were
+/// before the sweep (Jacobi order: propagation from all four neighbours), in parallel over
+/// chunks of holes; `next` is scratch. Used on the finest level, where the start from the
+/// coarser level is already good and the holes are many.
+fn sweep_parallel(
+    lv: &mut Level,
+    field: &mut [u32],
+    cost: &Cost,
+    search_r: i32,
+    seed: u64,
+    next: &mut Vec<u32>,
+) {
+    next.clear();
+    next.resize(lv.holes.len(), 0);
+    {
+        let (lv, field): (&Level, &[u32]) = (lv, field);
+        next.par_chunks_mut(CHUNK)
+            .zip(lv.holes.par_chunks(CHUNK))
+            .enumerate()
+            .for_each(|(ci, (out, holes))| {
+                let mut rng = Rng::new(seed ^ (ci as u64).wrapping_mul(0xA24B_AED4_963E_E407));
+                for (o, &p) in out.iter_mut().zip(holes) {
+                    let dirs = [(-1, 0), (1, 0), (0, -1), (0, 1)];
+                    *o = improve(lv, field, cost, p as usize, &dirs, search_r, &mut rng) as u32;
+                }
+            });
+    }
+    for (&p, &s) in lv.holes.iter().zip(next.iter()) {
+        field[p as usize] = s;
+        lv.color[p as usize] = lv.color[s as usize];
+    }
+}
+
+/// The best of hole `p`'s current match, the continuations of its neighbours' matches at the
+/// offsets `dirs`, and a random search around the best with radii `search_r`, `search_r / 2`,
+/// ..., 1.
+fn improve(
+    lv: &Level,
+    field: &[u32],
+    cost: &Cost,
+    p: usize,
+    dirs: &[(i32, i32)],
+    search_r: i32,
+    rng: &mut Rng,
+) -> usize {
+    let (w, h) = (lv.w as i32, lv.h as i32);
+    let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
+    let mut best = field[p] as usize;
+    let mut best_cost = total_cost(lv, field, cost, p, best, f32::INFINITY);
+    for &(dx, dy) in dirs {
+        let (nx, ny) = (px + dx, py + dy);
+        if nx < 0 || ny < 0 || nx >= w || ny >= h {
+            continue;
+        }
+        let n = (ny * w + nx) as usize;
+        if lv.state[n] != HOLE {
+            continue;
+        }
+        let m = field[n] as i32;
+        let (sx, sy) = (m % w - dx, m / w - dy);
+        if sx < 0 || sy < 0 || sx >= w || sy >= h {
+            continue;
+        }
+        let s = (sy * w + sx) as usize;
+        if s == best || lv.state[s] != KNOWN {
+            continue;
+        }
+        let c = total_cost(lv, field, cost, p, s, best_cost);
+        if c < best_cost {
+            best = s;
+            best_cost = c;
+        }
+    }
+    let mut r = search_r;
+    while r >= 1 {
+        let (bx, by) = ((best % lv.w) as i32, (best / lv.w) as i32);
+        let sx = (bx + rng.offset(r)).clamp(0, w - 1);
+        let sy = (by + rng.offset(r)).clamp(0, h - 1);
+        let s = (sy * w + sx) as usize;
+        if s != best && lv.state[s] == KNOWN {
             let c = total_cost(lv, field, cost, p, s, best_cost);
             if c < best_cost {
                 best = s;
                 best_cost = c;
             }
         }
-        // Random search around the best match, halving the radius.
-        let mut r = search_r;
-        while r >= 1 {
-            let (bx, by) = ((best % lv.w) as i32, (best / lv.w) as i32);
-            let sx = (bx + rng.offset(r)).clamp(0, w - 1);
-            let sy = (by + rng.offset(r)).clamp(0, h - 1);
-            let s = (sy * w + sx) as usize;
-            if s != best && lv.state[s] == KNOWN {
-                let c = total_cost(lv, field, cost, p, s, best_cost);
-                if c < best_cost {
-                    best = s;
-                    best_cost = c;
-                }
-            }
-            r /= 2;
-        }
-        field[p] = best as u32;
-        lv.color[p] = lv.color[best];
+        r /= 2;
     }
+    best
 }
 
 /// The cost of matching hole `p` to source `s`; stops early (returning at least `bound`) once
@@ -335,11 +433,16 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
     if total >= bound {
         return total;
     }
-    // Appearance: the mean squared difference over the patch's usable offsets.
+    // Appearance: the mean squared difference over the patch's usable offsets. The mean is at
+    // least the partial sum over the largest possible count: stop once that exceeds the bound.
     let r = cost.r;
     let mut sum = 0.0f32;
     let mut n = 0u32;
+    let inv_max = 1.0 / ((2 * r + 1) * (2 * r + 1) - 1).max(1) as f32;
     for dy in -r..=r {
+        if total + sum * inv_max >= bound {
+            return bound;
+        }
         let ty = py + dy;
         if ty < 0 || ty >= h {
             continue;

@@ -32,11 +32,24 @@ fn coarse_levels_mark_a_hole_where_any_child_is_one() {
         (10, 10) => HIDDEN,
         _ => KNOWN,
     };
-    build(&mut levels, &img, Rect::new(0, 0, 40, 40), state, None, 4);
+    build(
+        &mut levels,
+        &img,
+        Rect::new(0, 0, 40, 40),
+        state,
+        None,
+        0,
+        4,
+    );
     // Hole extent 1 <= 4: a single level.
     assert_eq!(levels.len(), 1);
     assert_eq!(levels[0].holes, [21 * 40 + 21]);
-    assert_eq!(levels[0].sources.len(), 40 * 40 - 2);
+    assert_eq!(levels[0].known, 40 * 40 - 2);
+    assert_eq!(
+        levels[0].sources.len(),
+        40 * 40 - 2,
+        "the coarsest level lists its sources"
+    );
     // A 30-pixel-wide hole band: levels until its extent is at most 4 (30 -> 15 -> 8 -> 4).
     let state = |x: usize, y: usize| {
         if (5..35).contains(&x) && y == 20 {
@@ -45,7 +58,15 @@ fn coarse_levels_mark_a_hole_where_any_child_is_one() {
             KNOWN
         }
     };
-    build(&mut levels, &img, Rect::new(0, 0, 40, 40), state, None, 4);
+    build(
+        &mut levels,
+        &img,
+        Rect::new(0, 0, 40, 40),
+        state,
+        None,
+        0,
+        4,
+    );
     assert_eq!(levels.len(), 4);
     let l1 = &levels[1];
     assert_eq!((l1.w, l1.h), (20, 20));
@@ -67,7 +88,7 @@ fn onion_peel_reaches_every_hole_and_reports_cut_off_ones() {
             KNOWN
         }
     };
-    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 16);
+    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 0, 16);
     assert!(onion_peel(&mut levels[0]));
     for &p in &levels[0].holes {
         assert_eq!(levels[0].color[p as usize], [90.0, 30.0, 10.0]);
@@ -78,6 +99,6 @@ fn onion_peel_reaches_every_hole_and_reports_cut_off_ones() {
         (a, b) if a.max(b) == 1 => HIDDEN,
         _ => KNOWN,
     };
-    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 16);
+    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 0, 16);
     assert!(!onion_peel(&mut levels[0]));
 }
