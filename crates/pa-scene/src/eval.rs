@@ -101,6 +101,17 @@ pub fn measure(
     frame: &SceneFrame,
     out: &ArFrame,
 ) -> Result<FrameMetrics, SceneError> {
+    Ok(measure_revealed(scene, renderer, frame, out)?.0)
+}
+
+/// [`measure`], also returning the revealed region it measured (pixels of the key pose that
+/// the in-between leaves, both at the true pose).
+pub fn measure_revealed(
+    scene: &Scene,
+    renderer: &mut Renderer,
+    frame: &SceneFrame,
+    out: &ArFrame,
+) -> Result<(FrameMetrics, Vec<bool>), SceneError> {
     let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
     let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
     let truth_mask = scene.prop_mask(renderer, frame.camera_from_marker, frame.time_s)?;
@@ -119,7 +130,7 @@ pub fn measure(
         }
         None => (None, None),
     };
-    Ok(FrameMetrics {
+    let metrics = FrameMetrics {
         frame: frame.index,
         key: frame.key,
         key_distance_deg: dist_deg,
@@ -132,7 +143,8 @@ pub fn measure(
         trans_err_mm,
         tracked: out.camera_from_marker.is_some(),
         timings: out.timings,
-    })
+    };
+    Ok((metrics, revealed))
 }
 
 /// Builds the frame pipeline for a scene: the real tracker on the scene's board.
@@ -173,8 +185,25 @@ pub fn run_scene<E: From<SceneError>>(
     frames: impl IntoIterator<Item = u32>,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_with(renderer, spec, settings, frames, false, |f, out, m, _| {
+        each(f, out, m)
+    })
+}
+
+/// [`run_scene`] with the pipeline's layers kept (`keep_passes`: [`ArFrame::passes`], and the
+/// fill then covers the whole dilated key silhouette), and `each` also given the revealed
+/// region measured ([`measure_revealed`]).
+pub fn run_scene_with<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
+    pipeline.set_keep_passes(keep_passes);
     let mut all = Vec::new();
     for i in frames {
         let f = scene.frame(renderer, i).map_err(SceneError::from)?;
@@ -192,8 +221,8 @@ pub fn run_scene<E: From<SceneError>>(
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;
-        let m = measure(&scene, renderer, &f, &out)?;
-        each(&f, &out, &m)?;
+        let (m, revealed) = measure_revealed(&scene, renderer, &f, &out)?;
+        each(&f, &out, &m, &revealed)?;
         all.push(m);
     }
     Ok(all)
