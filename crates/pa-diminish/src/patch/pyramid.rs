@@ -17,6 +17,9 @@ pub(super) const HOLE: u8 = 1;
 pub(super) const HIDDEN: u8 = 2;
 /// A hole not matched yet (during the coarsest level's first pass): not read either.
 pub(super) const UNSET: u8 = 3;
+/// A hole not matched yet but with a prior colour (during the coarsest level's first pass):
+/// its colour (the prior) is read by the appearance term, its match is not.
+pub(super) const PRIOR: u8 = 4;
 
 /// One level of the pyramid (row-major, `w x h`).
 #[derive(Debug, Default, Clone)]

@@ -1,7 +1,7 @@
 //! PatchMatch over the pyramid: the nearest-neighbour field of every level's holes, coarse to
 //! fine, with the PixMix cost (appearance + spatial + temporal).
 
-use super::pyramid::{add, Level, HIDDEN, HOLE, KNOWN, UNSET};
+use super::pyramid::{add, Level, HIDDEN, HOLE, KNOWN, PRIOR, UNSET};
 use rayon::prelude::*;
 
 use super::PatchParams;
@@ -180,7 +180,14 @@ const START_RANDOM: usize = 24;
 fn greedy_start(lv: &mut Level, field: &mut [u32], cost: &Cost, rng: &mut Rng) {
     let (w, h) = (lv.w as i32, lv.h as i32);
     for &p in &lv.holes {
-        lv.state[p as usize] = UNSET;
+        let p = p as usize;
+        // With a prior, its colours stand for the holes not matched yet: the start then
+        // reproduces the previous frame's fill where the view has not changed.
+        lv.state[p] = if !lv.prior_ok.is_empty() && lv.prior_ok[p] {
+            PRIOR
+        } else {
+            UNSET
+        };
     }
     let order = std::mem::take(&mut lv.order);
     for &p in &order {
