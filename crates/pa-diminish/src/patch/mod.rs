@@ -14,22 +14,34 @@
 //! fill is made of coherent pieces of the surroundings, so straight structures (a sheet's
 //! edge, a tag's border, wood grain) continue across the hole instead of being averaged away.
 //!
-//! The NNF is found by PatchMatch (propagation from the scan's previous neighbours, then a
-//! random search around the current match, alternate scan directions) coarse to fine over a
-//! pyramid: the coarsest level starts from an onion-peel fill and random matches; every finer
-//! level starts from the coarser NNF, upsampled. A pixel's colour is updated as soon as its
-//! match changes, so the appearance term sees the fill as it grows.
+//! The NNF is found coarse to fine over a pyramid (levels are added until the holes' box is
+//! at most [`PatchParams::coarsest_px`]; a coarse pixel is a hole if any of its 2x2 children
+//! is). The coarsest level starts greedily: its holes in onion order, from the known pixels
+//! inwards, each matched against what is known or matched before it (candidates: its matched
+//! neighbours' continuations, random sources, a random search around the best), so structure
+//! entering the hole from its border is carried inwards; then PatchMatch sweeps
+//! (propagation from the scan's previous neighbours, random search around the match,
+//! alternating scan directions, a pixel's colour updated as soon as its match changes). Every
+//! finer level starts from the coarser field, upsampled, and is swept again (in parallel over
+//! chunks of holes when they are many, each chunk with its own seeded generator, from the
+//! field as it was before the sweep). By default the finest level is not searched: its field
+//! is the upsampled one, and its colours are the vote of the overlapping 3x3 matches
+//! (`I(p) = mean over v of I(f(p + v) - v)`), which smooths the seams between copied pieces.
 //!
 //! The work is limited to the mask's bounding box grown by a margin (the sources are the known
-//! pixels in it). The random search draws from a seeded generator: the same input gives the
-//! same output, bit for bit.
+//! pixels in it). The random search draws from seeded generators: the same input gives the
+//! same output, bit for bit, whatever the number of threads.
 //!
 //! Temporal coherence: an optional prior (the previous frame's diminished background warped
-//! into this frame by the table-plane homography, [`PatchPrior`]) gives the initial colours
-//! where it is valid and the temporal term above, so a static background is filled the same
-//! way frame after frame instead of flickering between equally good matches.
+//! into this frame by the table-plane homography, [`PatchPrior`]) is sampled on the finest
+//! searched level and averaged down; it gives the coarsest start its context (the prior's
+//! colour stands for a hole not matched yet) and adds the temporal term above, so the fill of
+//! a background seen again follows the previous frame's instead of jumping between equally
+//! good matches. It is a prior on colours, not the previous field: a static frame filled again
+//! with its own result as prior is close to, not identical with, the first fill.
 //!
-//! Cost: O(levels x sweeps x pixels to fill x candidates x patch area) on the bounding box.
+//! Cost: O(levels x sweeps x holes x candidates x patch area) on the bounding box; about half
+//! of it is the finest level's bookkeeping (state, upsampling, vote), done in parallel.
 
 mod pyramid;
 mod search;
