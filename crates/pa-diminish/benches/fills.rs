@@ -1,6 +1,7 @@
 //! Criterion benches of the diminish stage at 1280x720: each fill over a bust-shaped prop mask
 //! (about 320 px tall, the built-in prop's size in the generated scene), dilated by 4 px as
-//! the pipeline does, plus the dilation and the depth-to-mask step.
+//! the pipeline does (the patch fill alone and with a previous-frame prior too), plus the
+//! dilation and the depth-to-mask step.
 //!
 //! `cargo bench -p pa-diminish` (add `-- --quick` for a rough figure in seconds).
 
@@ -9,7 +10,7 @@ use std::time::Duration;
 use criterion::{black_box, BatchSize, Criterion};
 use pa_diminish::{
     dilate, mask_from_depth, CleanPlate, DilateShape, Diminisher, FillMethod, Homography,
-    ImageRgba8, Mask, RayDirections,
+    ImageRgba8, Mask, PatchFill, PatchPrior, RayDirections,
 };
 
 const W: u32 = 1280;
@@ -87,6 +88,34 @@ fn main() {
     for (name, method) in &methods {
         let mut dim = Diminisher::new();
         g.bench_function(*name, |b| {
+            b.iter_batched_ref(
+                || frame.clone(),
+                |f| {
+                    dim.fill(f, &fill_mask, method).expect("fill");
+                },
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    // The patch fill alone, and as the pipeline runs it from the second frame on: with the
+    // previous result (here the same view's first fill) warped through a homography as prior.
+    let patch = FillMethod::Patch(PatchFill::new());
+    let mut first = frame.clone();
+    Diminisher::new()
+        .fill(&mut first, &fill_mask, &patch)
+        .expect("fill");
+    let shift = Homography::from_row_major([1.0, 0.0, 1.5, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0]);
+    let with_prior = FillMethod::Patch(PatchFill {
+        prior: Some(PatchPrior {
+            image: &first,
+            mask: &fill_mask,
+            current_from_previous: shift,
+        }),
+        ..PatchFill::new()
+    });
+    for (name, method) in [("patch", &patch), ("patch_with_prior", &with_prior)] {
+        let mut dim = Diminisher::new();
+        g.bench_function(name, |b| {
             b.iter_batched_ref(
                 || frame.clone(),
                 |f| {

@@ -24,6 +24,11 @@
 //!   current view by the table-plane homography, bilinearly sampled and gain-matched on a ring
 //!   around the mask; correct texture, not just a smooth guess. Pixels the plate does not
 //!   cover fall back to the ray fill. O(N x M) samples + O(ring). See [`plate`].
+//! * [`FillMethod::Patch`] - PixMix-class patch fill: every pixel copies one known pixel,
+//!   chosen by a nearest-neighbour field with an appearance and a spatial-coherence cost,
+//!   coarse to fine, so straight structures continue across the hole; optionally seeded by
+//!   the previous frame's result warped into this frame (steady over time) and preferring a
+//!   clean plate where one is given. O(N x M x patch area x candidates). See [`patch`].
 //!
 //! # Shadows ([`shadow`])
 //! A cast shadow on the table is a soft matte ([`ShadowMatte`]: pixel-space triangles from
@@ -37,6 +42,7 @@
 pub mod error;
 pub mod mask;
 pub mod metrics;
+pub mod patch;
 pub mod plate;
 pub mod ray_fill;
 pub mod rect_fill;
@@ -46,6 +52,7 @@ pub mod types;
 pub use error::DiminishError;
 pub use mask::{dilate, dilate_in_bbox, dilate_in_place, mask_from_depth, DilateShape};
 pub use metrics::{mse_rgb, psnr_rgb};
+pub use patch::{PatchFill, PatchParams, PatchPrior};
 pub use plate::{CleanPlate, GainEstimate, GainModel, GainSpace, Homography};
 pub use ray_fill::RayDirections;
 pub use rect_fill::{baseline_rect, paper_rectangle_fill};
@@ -64,6 +71,8 @@ pub enum FillMethod<'a> {
     Rays(RayDirections),
     /// Clean plate warped by a homography, gain-matched, with a ray-fill fallback.
     CleanPlate(CleanPlate<'a>),
+    /// Patch fill (PixMix class), with an optional previous-frame prior and clean plate.
+    Patch(PatchFill<'a>),
 }
 
 impl Default for FillMethod<'_> {
@@ -85,7 +94,9 @@ pub struct FillStats {
     /// Pixels interpolated by the ray fill (all of them for `Rays`, the fallback for
     /// `CleanPlate`).
     pub interpolated: usize,
-    /// The photometric correction used by `CleanPlate`.
+    /// Pixels copied by the patch fill (`Patch`).
+    pub patched: usize,
+    /// The photometric correction used by `CleanPlate` (and `Patch` with a plate).
     pub gain: Option<GainEstimate>,
 }
 
@@ -95,6 +106,7 @@ pub struct Diminisher {
     to_fill: Vec<u8>,
     rays: ray_fill::RayScratch,
     plate: plate::PlateScratch,
+    patch: patch::PatchScratch,
 }
 
 impl Diminisher {
@@ -195,6 +207,34 @@ impl Diminisher {
                     from_plate,
                     interpolated,
                     gain: Some(gain),
+                    ..FillStats::default()
+                })
+            }
+            FillMethod::Patch(pf) => {
+                mask::extract_into(mask, bbox, &mut self.to_fill);
+                let (from_plate, gain) = match &pf.plate {
+                    Some(cp) => {
+                        let (n, g) = plate::plate_fill_region(
+                            frame,
+                            mask,
+                            bbox,
+                            &mut self.to_fill,
+                            cp,
+                            &mut self.plate,
+                        )?;
+                        (n, Some(g))
+                    }
+                    None => (0, None),
+                };
+                let patched =
+                    patch::patch_fill_region(frame, bbox, &mut self.to_fill, pf, &mut self.patch)?;
+                Ok(FillStats {
+                    filled: from_plate + patched,
+                    bbox: Some(bbox),
+                    from_plate,
+                    patched,
+                    gain,
+                    ..FillStats::default()
                 })
             }
         }

@@ -85,12 +85,11 @@ impl FillName {
         Self::ALL.map(Self::name).join(", ")
     }
 
-    /// The pipeline's fill, or `None` where this build has none of that name.
-    ///
-    /// The one place the patch fill is mapped: this branch has no `Fill::Patch`.
+    /// The pipeline's fill, or `None` where this build has none of that name. The patch fill
+    /// maps without its plate; [`DiminishConfig::fill()`] adds the plate when there is one.
     pub fn to_fill(self) -> Option<Fill> {
         match self {
-            Self::Patch => None,
+            Self::Patch => Some(Fill::Patch { plate: false }),
             Self::Rays => Some(Fill::Rays),
             Self::Rectangle => Some(Fill::PaperRectangle),
             Self::Plate => Some(Fill::CleanPlate),
@@ -164,6 +163,17 @@ impl Default for DiminishConfig {
 }
 
 impl DiminishConfig {
+    /// The pipeline's fill: [`FillName::to_fill`], with the clean plate as the patch fill's
+    /// preferred source when the shot has one.
+    pub fn fill(&self) -> Option<Fill> {
+        match self.fill.to_fill()? {
+            Fill::Patch { .. } => Some(Fill::Patch {
+                plate: self.plate.is_some(),
+            }),
+            f => Some(f),
+        }
+    }
+
     /// The settings as one line, for a take's record (`fill=rays dilation=4 ...`).
     pub fn describe(&self) -> String {
         let plate = match &self.plate {

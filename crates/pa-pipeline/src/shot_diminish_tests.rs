@@ -120,10 +120,6 @@ fn refusals_name_the_shot_and_the_problem() {
             "[diminish] fill: fill \"smudge\": expected one of rays, plate, patch, rectangle, none",
         ),
         (
-            "[diminish]\nfill = \"patch\"\n",
-            "[diminish] fill = \"patch\": not available in this build",
-        ),
-        (
             "[diminish]\ndilation_px = -2\n",
             "[diminish] dilation_px must be 0..=64 pixels, got -2",
         ),
@@ -177,5 +173,15 @@ fn fill_names_round_trip() {
     for f in FillName::ALL {
         assert_eq!(f.name().parse::<FillName>(), Ok(f));
     }
-    assert_eq!(FillName::Patch.to_fill(), None);
+    assert_eq!(FillName::Patch.to_fill(), Some(Fill::Patch { plate: false }));
+    // The patch fill prefers the clean plate when the shot has one.
+    let mut c = DiminishConfig {
+        fill: FillName::Patch,
+        ..DiminishConfig::default()
+    };
+    assert_eq!(c.fill(), Some(Fill::Patch { plate: false }));
+    c.plate = Some(PlateSource::FirstFrames(2));
+    assert_eq!(c.fill(), Some(Fill::Patch { plate: true }));
+    c.fill = FillName::Rays;
+    assert_eq!(c.fill(), Some(Fill::Rays));
 }

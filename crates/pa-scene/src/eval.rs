@@ -112,14 +112,15 @@ pub fn measure(
     Ok(measure_revealed(scene, renderer, frame, out)?.0)
 }
 
-/// [`measure`], and the region the flicker metric follows (the revealed region away from the
-/// in-between's edge, [`flicker_region`]).
-fn measure_revealed(
+/// [`measure`], also returning the revealed region it measured (pixels of the key pose that
+/// the in-between leaves, both at the true pose) and the region the flicker metric follows
+/// (the revealed region away from the in-between's edge, [`flicker_region`]).
+pub fn measure_revealed(
     scene: &Scene,
     renderer: &mut Renderer,
     frame: &SceneFrame,
     out: &ArFrame,
-) -> Result<(FrameMetrics, Vec<bool>), SceneError> {
+) -> Result<(FrameMetrics, Vec<bool>, Vec<bool>), SceneError> {
     let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
     let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
     let truth_mask = scene.prop_mask(renderer, frame.camera_from_marker, frame.time_s)?;
@@ -156,7 +157,7 @@ fn measure_revealed(
         twin_mask_iou: None,
     };
     let region = flicker_region(&key_mask, &truth_mask, w, EDGE_MARGIN_PX);
-    Ok((m, region))
+    Ok((m, revealed, region))
 }
 
 /// Builds the frame pipeline for a scene: the real tracker on the scene's board.
@@ -197,8 +198,25 @@ pub fn run_scene<E: From<SceneError>>(
     frames: impl IntoIterator<Item = u32>,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_with(renderer, spec, settings, frames, false, |f, out, m, _| {
+        each(f, out, m)
+    })
+}
+
+/// [`run_scene`] with the pipeline's layers kept (`keep_passes`: [`ArFrame::passes`], and the
+/// fill then covers the whole dilated key silhouette), and `each` also given the revealed
+/// region measured ([`measure_revealed`]).
+pub fn run_scene_with<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
+    pipeline.set_keep_passes(keep_passes);
     let mut all = Vec::new();
     let mut flicker =
         Flicker::new(scene.intrinsics).with_plane_extent(f64::from(crate::scene::TABLE_M) * 0.5);
@@ -218,14 +236,14 @@ pub fn run_scene<E: From<SceneError>>(
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;
-        let (mut m, region) = measure_revealed(&scene, renderer, &f, &out)?;
+        let (mut m, revealed, region) = measure_revealed(&scene, renderer, &f, &out)?;
         m.flicker = flicker.step(
             &out.rgba8,
             &f.ground_truth.rgba8,
             &region,
             f.camera_from_marker,
         );
-        each(&f, &out, &m)?;
+        each(&f, &out, &m, &revealed)?;
         all.push(m);
     }
     Ok(all)

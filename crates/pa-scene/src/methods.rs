@@ -1,5 +1,6 @@
 //! The methods `propsalive eval` compares on the generated scenes: the paper's pipeline, each
-//! of our changes alone, ours in full, ours with a clean plate, the model's own texture, two
+//! of our changes alone, ours in full, ours with a clean plate, the patch fill (alone and with
+//! the clean plate), the model's own texture, two
 //! key poses, and the paper and ours on a tripod camera. The report's tables and curves are
 //! keyed by [`Method::name`] (curves are drawn for the methods named `ours:...`,
 //! `ours, two...` and `paper...`).
@@ -64,6 +65,24 @@ pub fn methods() -> Vec<Method> {
             camera_path: CameraPath::Handheld,
         },
         Method {
+            name: "ours, patch fill",
+            settings: ArSettings {
+                fill: Fill::Patch { plate: false },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours, patch fill with clean plate",
+            settings: ArSettings {
+                fill: Fill::Patch { plate: true },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
             name: "model texture (no live sampling), ray fill",
             settings: ArSettings {
                 texturing: Texturing::ModelTexture,
@@ -109,6 +128,8 @@ mod tests {
                 "live, no visibility, ray fill",
                 "ours: live + visibility, ray fill",
                 "ours with clean plate",
+                "ours, patch fill",
+                "ours, patch fill with clean plate",
                 "model texture (no live sampling), ray fill",
                 "ours, two key poses (frames 0 and 24)",
                 "tripod camera: paper",
@@ -116,14 +137,16 @@ mod tests {
             ]
         );
         let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
-        assert_eq!(keys[6], [0, 24]);
-        assert!(keys.iter().enumerate().all(|(i, k)| i == 6 || k == &[0]));
+        assert_eq!(keys[8], [0, 24]);
+        assert!(keys.iter().enumerate().all(|(i, k)| i == 8 || k == &[0]));
         let tripod = m
             .iter()
             .filter(|m| m.camera_path == CameraPath::Static)
             .count();
         assert_eq!(tripod, 2);
         assert!(matches!(m[4].settings.fill, Fill::CleanPlate));
-        assert!(matches!(m[5].settings.texturing, Texturing::ModelTexture));
+        assert!(matches!(m[5].settings.fill, Fill::Patch { plate: false }));
+        assert!(matches!(m[6].settings.fill, Fill::Patch { plate: true }));
+        assert!(matches!(m[7].settings.texturing, Texturing::ModelTexture));
     }
 }

@@ -1,6 +1,6 @@
 //! Golden images of the frame pipeline on a small generated scene: the live texturing (with
 //! and without the visibility fallback, no diminishing) and each fill (the paper's rectangle,
-//! our ray fill, the clean plate), composited over the same frame.
+//! our ray fill, the clean plate, the patch fill), composited over the same frame.
 //!
 //! The scene is 192x108 (2x2 supersampled), seed 3, with the key prop of animation frame 0
 //! and the in-between of frame 20 (the head turned about 38 degrees), seen from the true
@@ -94,6 +94,13 @@ fn texturing_and_fills_match_their_goldens() {
             "ar_fill_clean_plate",
             ArSettings {
                 fill: Fill::CleanPlate,
+                ..ours
+            },
+        ),
+        (
+            "ar_fill_patch",
+            ArSettings {
+                fill: Fill::Patch { plate: false },
                 ..ours
             },
         ),

@@ -12,12 +12,14 @@ const CURVE_METHODS: [&str; 3] = [
 ];
 
 /// Every method (the categories of the method chart).
-const ALL_METHODS: [&str; 9] = [
+const ALL_METHODS: [&str; 11] = [
     "paper (live, no visibility, rectangle fill)",
     "live + visibility, rectangle fill",
     "live, no visibility, ray fill",
     "ours: live + visibility, ray fill",
     "ours with clean plate",
+    "ours, patch fill",
+    "ours, patch fill with clean plate",
     "model texture (no live sampling), ray fill",
     "ours, two key poses (frames 0 and 24)",
     "tripod camera: paper",
@@ -51,6 +53,8 @@ fn eval_writes_linked_svg_plots() {
     let run = Command::new(env!("CARGO_BIN_EXE_propsalive"))
         .args(["eval", "--seeds", "1", "--stride", "12", "--out"])
         .arg(&out)
+        .arg("--dump-fills")
+        .arg(dir.path().join("fills"))
         .output()
         .expect("run");
     let stderr = String::from_utf8_lossy(&run.stderr);
@@ -123,6 +127,47 @@ fn eval_writes_linked_svg_plots() {
             report.contains(&format!("]({name})")),
             "report lacks {name}"
         );
+    }
+    // --dump-fills: per background and seed, each frame's inputs of the fill comparison, and
+    // each fill's plate once the tracker has a pose (frame 2 on); the patch fill changed
+    // pixels of the fill mask and none outside it.
+    for sub in ["wood_s1", "plain_s1"] {
+        let d = dir.path().join("fills").join(sub);
+        let png = |name: &str| {
+            let path = d.join(format!("f003_{name}.png"));
+            image::open(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+                .to_rgba8()
+        };
+        for name in [
+            "input",
+            "truth",
+            "revealed",
+            "fillmask",
+            "fill_rectangle",
+            "fill_rays",
+            "fill_plate",
+            "fill_patch",
+            "fill_patch_plate",
+        ] {
+            assert_eq!(png(name).dimensions(), (480, 270), "{sub} {name}");
+        }
+        let (input, patch, mask) = (png("input"), png("fill_patch"), png("fillmask"));
+        let (mut inside, mut outside) = (0, 0);
+        for ((i, p), m) in input.pixels().zip(patch.pixels()).zip(mask.pixels()) {
+            if i.0[..3] != p.0[..3] {
+                if m.0[0] > 127 {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            }
+        }
+        assert!(
+            inside > 100,
+            "{sub}: the patch fill changed {inside} mask pixels"
+        );
+        assert_eq!(outside, 0, "{sub}: the patch fill wrote outside its mask");
     }
     let doc: serde_json::Value =
         serde_json::from_str(&read(&out.join("results.json"))).expect("results.json");

@@ -201,7 +201,6 @@ fn bad_diminish_settings_are_refused_before_the_take() {
             vec!["--fill", "smudge"],
             "--fill: fill \"smudge\": expected one of",
         ),
-        (vec!["--fill", "patch"], "not available in this build"),
         (
             vec!["--dilation", "-3"],
             "--dilation must be 0..=64 pixels, got -3",

@@ -26,6 +26,12 @@ pub enum Fill {
     Rays,
     /// The clean plate warped by the table-plane homography (ray fill where it has no data).
     CleanPlate,
+    /// The patch fill ([`pa_diminish::patch`], PixMix class): continues the surroundings'
+    /// structure and texture into the hole, seeded by the previous frame's result warped by
+    /// the table-plane homography (kept by the pipeline, forgotten by
+    /// [`crate::ar::ArPipeline::reset_tracker`]). With `plate`, the clean plate (when the
+    /// pipeline has one) is used where it has data and the patch fill covers the rest.
+    Patch { plate: bool },
     /// No diminishing (the real prop stays visible).
     None,
 }

@@ -4,8 +4,8 @@
 use glam::{DMat3, DVec3, Mat4};
 use pa_camera::CameraModel;
 use pa_diminish::{
-    dilate_in_bbox, CleanPlate, DilateShape, FillMethod, Homography, ImageRgba8, Mask,
-    RayDirections, Rect,
+    dilate_in_bbox, CleanPlate, DilateShape, FillMethod, Homography, ImageRgba8, Mask, PatchFill,
+    PatchPrior, RayDirections, Rect,
 };
 
 use super::texture::{Bbox, Textured};
@@ -76,11 +76,18 @@ impl ArPipeline {
             None => return Err(ArError::FillMaskMissing),
         };
         let plate_h = match (&self.plate, self.settings.fill) {
-            (Some((_, plate_pose)), Fill::CleanPlate) => Some(Homography::from_dmat3(
-                plane_homography(&camera_model, camera_from_marker, *plate_pose),
-            )),
+            (Some((_, plate_pose)), Fill::CleanPlate | Fill::Patch { plate: true }) => {
+                Some(Homography::from_dmat3(plane_homography(
+                    &camera_model,
+                    camera_from_marker,
+                    *plate_pose,
+                )))
+            }
             _ => None,
         };
+        if let Fill::Patch { .. } = self.settings.fill {
+            return self.patch_fill(view, background, fill_region, plate_h);
+        }
         let method = match self.settings.fill {
             Fill::PaperRectangle => Some(FillMethod::PaperRectangle { rect: None }),
             Fill::Rays => Some(FillMethod::Rays(RayDirections::default())),
@@ -90,11 +97,79 @@ impl ArPipeline {
                 }
                 _ => Some(FillMethod::Rays(RayDirections::default())),
             },
-            Fill::None => None,
+            Fill::Patch { .. } | Fill::None => None,
         };
         if let (Some(m), Some(region)) = (method, fill_region) {
             self.diminisher
                 .fill_in_bbox(&mut background, fill_mask, region, &m)?;
+        }
+        Ok(background)
+    }
+}
+
+/// What the patch fill keeps from one frame for the next: the diminished background, its fill
+/// mask (hidden pixels were not filled) and the pose it was seen from.
+pub(super) struct PatchState {
+    image: ImageRgba8,
+    mask: Mask,
+    camera_from_marker: Mat4,
+}
+
+impl ArPipeline {
+    /// The patch fill ([`Fill::Patch`]): the previous frame's result, warped through the
+    /// table-plane homography, as prior; the clean plate first where `plate_h` is given. Keeps
+    /// this frame's result for the next.
+    fn patch_fill(
+        &mut self,
+        view: &FrameView<'_>,
+        mut background: ImageRgba8,
+        fill_region: Option<Rect>,
+        plate_h: Option<Homography>,
+    ) -> Result<ImageRgba8, ArError> {
+        let fill_mask = match &self.fill_mask {
+            Some((m, _)) => m,
+            None => return Err(ArError::FillMaskMissing),
+        };
+        let Some(region) = fill_region else {
+            return Ok(background);
+        };
+        let prior = self
+            .patch_prior
+            .as_ref()
+            .filter(|s| s.image.size() == background.size())
+            .map(|s| PatchPrior {
+                image: &s.image,
+                mask: &s.mask,
+                current_from_previous: Homography::from_dmat3(plane_homography(
+                    &view.camera_model,
+                    view.camera_from_marker,
+                    s.camera_from_marker,
+                )),
+            });
+        let plate = match (&self.plate, plate_h) {
+            (Some((plate, _)), Some(h)) => Some(CleanPlate::new(plate, h)),
+            _ => None,
+        };
+        let method = FillMethod::Patch(PatchFill {
+            prior,
+            plate,
+            ..PatchFill::new()
+        });
+        self.diminisher
+            .fill_in_bbox(&mut background, fill_mask, region, &method)?;
+        match &mut self.patch_prior {
+            Some(s) if s.image.size() == background.size() => {
+                s.image.copy_from(&background)?;
+                s.mask.as_mut_slice().copy_from_slice(fill_mask.as_slice());
+                s.camera_from_marker = view.camera_from_marker;
+            }
+            slot => {
+                *slot = Some(PatchState {
+                    image: background.clone(),
+                    mask: fill_mask.clone(),
+                    camera_from_marker: view.camera_from_marker,
+                })
+            }
         }
         Ok(background)
     }

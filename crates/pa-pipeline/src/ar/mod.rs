@@ -91,6 +91,8 @@ pub struct ArPipeline {
     keep_passes: bool,
     /// Shadows: on or off, and the light ([`shadows`]).
     shadows: shadows::ShadowState,
+    /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
+    patch_prior: Option<fill::PatchState>,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -160,6 +162,7 @@ impl ArPipeline {
             fill_mask: None,
             keep_passes: false,
             shadows: shadows::ShadowState::default(),
+            patch_prior: None,
         })
     }
 
@@ -212,9 +215,10 @@ impl ArPipeline {
         self.props[0].marker_from_prop = marker_from_prop;
     }
 
-    /// Forgets the tracker's history (state, filter, search region) before a frame that
-    /// starts a new sequence; nothing without a tracker.
+    /// Forgets the tracker's history (state, filter, search region) and the patch fill's
+    /// previous result before a frame that starts a new sequence.
     pub fn reset_tracker(&mut self) {
+        self.patch_prior = None;
         if let Some(tracker) = &mut self.tracker {
             tracker.reset();
         }

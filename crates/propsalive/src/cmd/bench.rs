@@ -117,6 +117,8 @@ pub enum Method {
     Paper,
     /// Ours with the clean-plate fill.
     Plate,
+    /// Ours with the patch fill (seeded by the previous frame's result from the second frame).
+    Patch,
 }
 
 impl Method {
@@ -128,6 +130,10 @@ impl Method {
                 fill: Fill::CleanPlate,
                 ..ArSettings::ours()
             },
+            Method::Patch => ArSettings {
+                fill: Fill::Patch { plate: false },
+                ..ArSettings::ours()
+            },
         }
     }
 
@@ -136,6 +142,7 @@ impl Method {
             Method::Ours => "ours (live texturing + visibility, ray fill, 4 px dilation)",
             Method::Paper => "paper (live texturing, no visibility, rectangle fill)",
             Method::Plate => "ours with clean plate (live + visibility, plate fill)",
+            Method::Patch => "ours with the patch fill (live + visibility, patch fill)",
         }
     }
 }

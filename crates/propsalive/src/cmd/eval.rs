@@ -13,13 +13,15 @@
 
 mod set;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
+use pa_diminish::{dilate, DilateShape, Mask};
+use pa_pipeline::ar::{ArSettings, Fill};
 use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
-use pa_scene::eval::run_scene;
+use pa_scene::eval::{run_scene, run_scene_with};
 use pa_scene::methods::methods;
 use pa_scene::scene::Background;
 use pa_scene::tracking::{tracking_errors, SensorNoise, TrackingErrors};
@@ -46,6 +48,101 @@ pub struct Args {
     /// table (`cloth`) runs on that table only; otherwise on wood and plain.
     #[arg(long, default_value = "default")]
     pub scene: String,
+    /// Also write, per background, seed and frame, the inputs of a fill comparison as PNGs
+    /// into this folder: `input`, `truth` (ground truth), `revealed` and `fillmask` (white =
+    /// set) and each fill's diminished plate (`fill_<name>`); see
+    /// `scripts/inpaint_baselines.py`.
+    #[arg(long)]
+    pub dump_fills: Option<PathBuf>,
+}
+
+/// The fills `--dump-fills` compares (all with our texturing, dilation and camera path).
+fn dump_methods() -> Vec<(&'static str, ArSettings)> {
+    let ours = ArSettings::ours();
+    [
+        ("rectangle", Fill::PaperRectangle),
+        ("rays", Fill::Rays),
+        ("plate", Fill::CleanPlate),
+        ("patch", Fill::Patch { plate: false }),
+        ("patch_plate", Fill::Patch { plate: true }),
+    ]
+    .into_iter()
+    .map(|(n, fill)| (n, ArSettings { fill, ..ours }))
+    .collect()
+}
+
+/// Runs the fills of [`dump_methods`] with the pipeline's layers kept and writes the PNGs of
+/// `--dump-fills` (layout in its help). The fill mask is the key-pose silhouette as tracked,
+/// dilated as the pipeline does; the fills cover all of it (as with `--passes`).
+fn dump_fills(
+    renderer: &mut Renderer,
+    dir: &Path,
+    (w, h): (u32, u32),
+    seeds: &[u64],
+    frames: &[u32],
+) -> Result<()> {
+    let png = |path: PathBuf, rgba8: Vec<u8>| -> Result<()> {
+        let img = image::RgbaImage::from_raw(w, h, rgba8).context("image size")?;
+        let mut bytes = Vec::new();
+        img.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )?;
+        pa_io::write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))
+    };
+    let gray = |m: &[bool]| -> Vec<u8> {
+        m.iter()
+            .flat_map(|&b| {
+                let v = if b { 255 } else { 0 };
+                [v, v, v, 255]
+            })
+            .collect()
+    };
+    for background in [Background::Wood, Background::Plain] {
+        for &seed in seeds {
+            let sub = dir.join(format!("{background:?}_s{seed}").to_lowercase());
+            std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
+            for (i, (name, settings)) in dump_methods().into_iter().enumerate() {
+                errln!("dump {background:?} seed {seed}: {name}");
+                let spec = SceneSpec {
+                    seed,
+                    width: w,
+                    height: h,
+                    background,
+                    ..SceneSpec::default()
+                };
+                run_scene_with(
+                    renderer,
+                    spec,
+                    settings,
+                    frames.iter().copied(),
+                    true,
+                    |f, out, _, revealed| {
+                        let stem = |what: &str| sub.join(format!("f{:03}_{what}.png", f.index));
+                        if i == 0 {
+                            let key = Mask::new(
+                                w,
+                                h,
+                                out.key_mask.iter().map(|&b| u8::from(b) * 255).collect(),
+                            )?;
+                            let mut fill = Mask::zeros(w, h)?;
+                            dilate(&key, settings.dilate_px, DilateShape::Disc, &mut fill)?;
+                            let fill: Vec<bool> = fill.as_slice().iter().map(|&v| v != 0).collect();
+                            png(stem("input"), f.input.rgba8.clone())?;
+                            png(stem("truth"), f.ground_truth.rgba8.clone())?;
+                            png(stem("revealed"), gray(revealed))?;
+                            png(stem("fillmask"), gray(&fill))?;
+                        }
+                        if let Some(p) = &out.passes {
+                            png(stem(&format!("fill_{name}")), p.plate_rgba8.clone())?;
+                        }
+                        anyhow::Ok(())
+                    },
+                )?;
+            }
+        }
+    }
+    Ok(())
 }
 
 pub fn run(args: Args) -> Result<()> {
@@ -84,6 +181,10 @@ pub fn run(args: Args) -> Result<()> {
     let stride = args.stride;
     // Frames 0..3 let the tracker lock on; then every `stride`-th frame.
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(stride as usize)).collect();
+    if let Some(dir) = &args.dump_fills {
+        dump_fills(&mut renderer, dir, (w, h), &args.seeds, &frames)?;
+        outln!("fill comparison PNGs in {}", dir.display());
+    }
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
     for (bi, &background) in backgrounds.iter().enumerate() {

@@ -67,7 +67,7 @@ impl DiminishArgs {
 
 /// The pipeline's settings for `d`: our method with its fill and dilation.
 pub fn settings(d: &DiminishConfig) -> Result<ArSettings> {
-    let Some(fill) = d.fill.to_fill() else {
+    let Some(fill) = d.fill() else {
         bail!("fill {:?}: not available in this build", d.fill.name());
     };
     Ok(ArSettings {

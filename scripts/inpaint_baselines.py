@@ -1,0 +1,140 @@
+#!/usr/bin/env python3
+"""OpenCV's inpainting (Telea, Navier-Stokes) next to our fills on the same masks.
+
+Reads what `propsalive eval --dump-fills DIR` writes (one folder per background and seed,
+per frame `fNNN_input.png`, `fNNN_truth.png`, `fNNN_revealed.png`, `fNNN_fillmask.png` and
+each fill's diminished plate `fNNN_fill_<name>.png`), inpaints every input with
+cv2.INPAINT_TELEA and cv2.INPAINT_NS on its fill mask, and prints the revealed-background
+PSNR (dB, peak 255, over R, G, B of the revealed pixels, each frame's MSE averaged over the
+frames of a folder the way `eval` averages its PSNR: the mean of the per-frame PSNRs) of every
+method, per folder and per background.
+
+    pip install numpy opencv-python-headless
+    python3 scripts/inpaint_baselines.py DIR [--radius 3] [--erode 2] [--markdown]
+
+Not part of the build or CI. The fill times of OpenCV are printed too (median per frame,
+single call, this machine).
+"""
+
+import argparse
+import glob
+import os
+import re
+import statistics
+import sys
+import time
+
+try:
+    import cv2
+    import numpy as np
+except ImportError as e:  # pragma: no cover
+    sys.exit(f"{e}: pip install numpy opencv-python-headless")
+
+
+def read_rgb(path):
+    img = cv2.imread(path, cv2.IMREAD_COLOR)
+    if img is None:
+        sys.exit(f"cannot read {path}")
+    return img
+
+
+def read_mask(path):
+    m = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    if m is None:
+        sys.exit(f"cannot read {path}")
+    return m > 127
+
+
+def psnr(a, b, region):
+    if not region.any():
+        return None
+    d = a[region].astype(np.float64) - b[region].astype(np.float64)
+    mse = float(np.mean(d * d))
+    return float("inf") if mse == 0 else 10.0 * np.log10(255.0 * 255.0 / mse)
+
+
+def folder_scores(folder, radius, erode):
+    """{method: [psnr per frame]}, {method: [seconds per frame]} of one dump folder."""
+    frames = sorted(
+        {m.group(1) for f in os.listdir(folder) if (m := re.match(r"(f\d+)_input\.png$", f))}
+    )
+    scores, times = {}, {}
+    for fr in frames:
+        p = lambda what: os.path.join(folder, f"{fr}_{what}.png")
+        fills = sorted(glob.glob(p("fill_*")))
+        if not fills:
+            continue  # no pose yet (tracker locking on): nothing was filled
+        inp, truth = read_rgb(p("input")), read_rgb(p("truth"))
+        revealed, fill = read_mask(p("revealed")), read_mask(p("fillmask"))
+        if erode > 0:
+            # Drop the revealed pixels within `erode` px of its border: the ground truth's
+            # pixels at the in-between's silhouette mix prop and background (2x2 supersampled),
+            # which no fill can know.
+            k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * erode + 1, 2 * erode + 1))
+            revealed = cv2.erode(revealed.astype(np.uint8), k) > 0
+        region = revealed & fill
+        if not region.any():
+            continue
+        for path in fills:
+            name = re.search(r"_fill_(.+)\.png$", path).group(1)
+            scores.setdefault(name, []).append(psnr(read_rgb(path), truth, region))
+        mask8 = fill.astype(np.uint8) * 255
+        for name, flag in (("opencv_telea", cv2.INPAINT_TELEA), ("opencv_ns", cv2.INPAINT_NS)):
+            t = time.perf_counter()
+            out = cv2.inpaint(inp, mask8, radius, flag)
+            times.setdefault(name, []).append(time.perf_counter() - t)
+            scores.setdefault(name, []).append(psnr(out, truth, region))
+    return scores, times
+
+
+def mean(v):
+    v = [x for x in v if x is not None and np.isfinite(x)]
+    return sum(v) / len(v) if v else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("dir", help="the folder given to `propsalive eval --dump-fills`")
+    ap.add_argument("--radius", type=int, default=3, help="cv2.inpaint radius (px)")
+    ap.add_argument("--markdown", action="store_true", help="print Markdown tables")
+    ap.add_argument(
+        "--erode",
+        type=int,
+        default=0,
+        help="leave out revealed pixels within this many px of the region's border (0: the "
+        "region eval measures)",
+    )
+    args = ap.parse_args()
+    folders = sorted(d for d in glob.glob(os.path.join(args.dir, "*")) if os.path.isdir(d))
+    if not folders:
+        sys.exit(f"no dump folders in {args.dir}")
+    by_bg = {}
+    all_times = {}
+    for folder in folders:
+        scores, times = folder_scores(folder, args.radius, args.erode)
+        bg = os.path.basename(folder).rsplit("_s", 1)[0]
+        for k, v in scores.items():
+            by_bg.setdefault(bg, {}).setdefault(k, []).extend(v)
+        for k, v in times.items():
+            all_times.setdefault(k, []).extend(v)
+        row = "  ".join(f"{k} {mean(v):.2f}" for k, v in sorted(scores.items()))
+        print(f"{os.path.basename(folder)}: {row}")
+    methods = sorted({m for s in by_bg.values() for m in s})
+    print()
+    if args.markdown:
+        print("| background | " + " | ".join(methods) + " | frames |")
+        print("|---" * (len(methods) + 2) + "|")
+        for bg, s in sorted(by_bg.items()):
+            n = max(len(v) for v in s.values())
+            cells = " | ".join(f"{mean(s.get(m, [])):.2f}" for m in methods)
+            print(f"| {bg} | {cells} | {n} |")
+    else:
+        print("revealed-background PSNR, dB (mean over frames)")
+        for bg, s in sorted(by_bg.items()):
+            print(f"  {bg}: " + "  ".join(f"{m} {mean(s.get(m, [])):.2f}" for m in methods))
+    for k, v in sorted(all_times.items()):
+        print(f"{k}: median {1e3 * statistics.median(v):.2f} ms a frame")
+
+
+if __name__ == "__main__":
+    main()
