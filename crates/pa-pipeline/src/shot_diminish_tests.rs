@@ -173,7 +173,10 @@ fn fill_names_round_trip() {
     for f in FillName::ALL {
         assert_eq!(f.name().parse::<FillName>(), Ok(f));
     }
-    assert_eq!(FillName::Patch.to_fill(), Some(Fill::Patch { plate: false }));
+    assert_eq!(
+        FillName::Patch.to_fill(),
+        Some(Fill::Patch { plate: false })
+    );
     // The patch fill prefers the clean plate when the shot has one.
     let mut c = DiminishConfig {
         fill: FillName::Patch,

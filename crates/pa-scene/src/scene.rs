@@ -27,8 +27,8 @@ use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
 use crate::prop::{prop_model, value_noise, PropSpec};
-use crate::variant::{fill_light, shadow_lights, PlaneLighting, SetOptions, CONTACT};
 use crate::shadow::PlaneShadows;
+use crate::variant::{fill_light, shadow_lights, PlaneLighting, SetOptions, CONTACT};
 use crate::SceneError;
 
 /// Table surface texture.

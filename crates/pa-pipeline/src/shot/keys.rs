@@ -50,7 +50,13 @@ pub const KNOWN_KEYS: &[(&str, &[&str])] = &[
     ),
     (
         "diminish",
-        &["fill", "clean_plate", "plate_frames", "dilation_px", "shadows"],
+        &[
+            "fill",
+            "clean_plate",
+            "plate_frames",
+            "dilation_px",
+            "shadows",
+        ],
     ),
 ];
 
