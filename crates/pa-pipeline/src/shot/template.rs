@@ -148,7 +148,9 @@ impl NewShot {
         line(&format!("scale = {}", num(f64::from(pl.scale))));
         line("");
         line("# How the real prop is removed where the twin no longer covers it (optional; `run`");
-        line("# and `preview` flags override it): fill = \"rays\" (default), \"patch\", \"plate\",");
+        line(
+            "# and `preview` flags override it): fill = \"rays\" (default), \"patch\", \"plate\",",
+        );
         line("# \"rectangle\" or \"none\"; clean_plate = \"plate.png\" (a still of the set without the");
         line("# prop) or plate_frames = N (the take's first N stills); dilation_px = 4; shadows = false.");
         line("# [diminish]");
