@@ -94,12 +94,16 @@ pub fn key_distance(scene: &Scene, time_s: f32, key_time_s: f32) -> (f64, f64) {
 }
 
 /// Rotation (degrees) and translation (mm) error between two `camera_from_marker` poses.
+///
+/// In f64, the angle from the relative rotation's vector part (`atan2(|xyz|, |w|)`): the f32
+/// `acos(w)` this replaced could not tell 0.02 degrees from 0 (its steps near zero are about
+/// 0.04 degrees), so a median error below that read 0.000.
 pub fn pose_error(estimated: Mat4, truth: Mat4) -> (f64, f64) {
-    let (_, re, te) = estimated.to_scale_rotation_translation();
-    let (_, rt, tt) = truth.to_scale_rotation_translation();
+    let (_, re, te) = estimated.as_dmat4().to_scale_rotation_translation();
+    let (_, rt, tt) = truth.as_dmat4().to_scale_rotation_translation();
     let rel = re * rt.inverse();
-    let angle = 2.0 * (rel.w.abs().min(1.0) as f64).acos();
-    (angle.to_degrees(), ((te - tt).length() * 1000.0) as f64)
+    let angle = 2.0 * rel.xyz().length().atan2(rel.w.abs());
+    (angle.to_degrees(), (te - tt).length() * 1000.0)
 }
 
 /// Compares one pipeline output with the frame's ground truth.
@@ -271,4 +275,28 @@ pub fn median(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
     }
     v.sort_by(f64::total_cmp);
     Some(v[v.len() / 2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: the demo's median rotation error read "0.000 deg" once the tracker got
+    /// below the f32 `acos` step (about 0.04 degrees); small angles must be resolved.
+    #[test]
+    fn pose_error_resolves_hundredths_of_a_degree() {
+        let truth = Mat4::from_rotation_translation(
+            Quat::from_rotation_x(0.6),
+            glam::Vec3::new(0.01, 0.02, 0.5),
+        );
+        for deg in [0.0f32, 0.005, 0.02, 0.1, 2.0] {
+            let est = Mat4::from_rotation_translation(
+                Quat::from_rotation_y(deg.to_radians()) * Quat::from_rotation_x(0.6),
+                glam::Vec3::new(0.01, 0.02, 0.503),
+            );
+            let (r, t) = pose_error(est, truth);
+            assert!((r - f64::from(deg)).abs() < 1e-3, "{deg} deg read as {r}");
+            assert!((t - 3.0).abs() < 1e-3, "{t} mm");
+        }
+    }
 }
