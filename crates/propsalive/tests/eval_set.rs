@@ -39,6 +39,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let report = std::fs::read_to_string(out.join("report.md")).expect("report");
     for fill in [
         "| Blender: blender_bust | live + visibility, rectangle fill |",
+        "| Blender: blender_bust | ours, patch fill |",
         "| Blender: blender_bust | ours: live + visibility, ray fill |",
         "| Blender: blender_bust | ours with clean plate |",
     ] {
@@ -63,7 +64,8 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(12));
+    // 4 frames x 4 fills (rectangle, rays, plate, patch).
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(16));
     assert!(out.join("blender_bust/plate/0006.png").is_file());
 }
 

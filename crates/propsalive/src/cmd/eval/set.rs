@@ -82,7 +82,7 @@ pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
 }
 
 /// The fills compared on a set, with the generated scenes' method names.
-fn fills() -> [(&'static str, ArSettings); 3] {
+fn fills() -> [(&'static str, ArSettings); 4] {
     let ours = ArSettings::ours();
     [
         (
@@ -100,12 +100,21 @@ fn fills() -> [(&'static str, ArSettings); 3] {
                 ..ours
             },
         ),
+        (
+            "ours, patch fill",
+            ArSettings {
+                fill: Fill::Patch { plate: false },
+                ..ours
+            },
+        ),
     ]
 }
 
 fn short(name: &str) -> &'static str {
     if name.contains("rectangle") {
         "rectangle"
+    } else if name.contains("patch") {
+        "patch"
     } else if name.contains("plate") {
         "plate"
     } else {
