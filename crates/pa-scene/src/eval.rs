@@ -100,10 +100,20 @@ pub fn key_distance(scene: &Scene, time_s: f32, key_time_s: f32) -> (f64, f64) {
 /// 0.04 degrees), so a median error below that read 0.000.
 pub fn pose_error(estimated: Mat4, truth: Mat4) -> (f64, f64) {
     let (_, re, te) = estimated.as_dmat4().to_scale_rotation_translation();
+    pose_error_of(re, te, truth)
+}
+
+/// [`pose_error`] of an estimate given as a rotation and a translation in f64 (the
+/// tracker's own pose, [`crate::tracking::pose_error_f64`]).
+pub(crate) fn pose_error_of(
+    rotation: glam::DQuat,
+    translation: glam::DVec3,
+    truth: Mat4,
+) -> (f64, f64) {
     let (_, rt, tt) = truth.as_dmat4().to_scale_rotation_translation();
-    let rel = re * rt.inverse();
+    let rel = rotation * rt.inverse();
     let angle = 2.0 * rel.xyz().length().atan2(rel.w.abs());
-    (angle.to_degrees(), (te - tt).length() * 1000.0)
+    (angle.to_degrees(), (translation - tt).length() * 1000.0)
 }
 
 /// Compares one pipeline output with the frame's ground truth.
@@ -251,30 +261,6 @@ pub fn run_scene_with<E: From<SceneError>>(
         all.push(m);
     }
     Ok(all)
-}
-
-/// Mean of the finite values.
-pub fn mean(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
-    let v: Vec<f64> = values
-        .into_iter()
-        .flatten()
-        .filter(|x| x.is_finite())
-        .collect();
-    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-}
-
-/// Median of the values.
-pub fn median(values: impl IntoIterator<Item = Option<f64>>) -> Option<f64> {
-    let mut v: Vec<f64> = values
-        .into_iter()
-        .flatten()
-        .filter(|x| x.is_finite())
-        .collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! frames with sensor noise and blur ([`SensorNoise`]). `propsalive eval` reports the medians
 //! as its "tracking" rows.
 
-use glam::{DMat4, DQuat, Mat4};
+use glam::Mat4;
 use pa_camera::CameraModel;
 use pa_pipeline::ar::gray_from_rgba;
 use pa_render::Renderer;
@@ -87,14 +87,7 @@ pub struct TrackingErrors {
 /// Rotation (degrees) and translation (mm) error of `estimated` against a true
 /// `camera_from_marker`, in f64 (an f32 quaternion cannot resolve hundredths of a degree).
 pub fn pose_error_f64(estimated: &Pose, truth: Mat4) -> (f64, f64) {
-    let t = truth.as_dmat4();
-    let (_, rt, tt) = DMat4::to_scale_rotation_translation(&t);
-    let rel: DQuat = estimated.rotation * rt.inverse();
-    let angle = 2.0 * rel.xyz().length().atan2(rel.w.abs());
-    (
-        angle.to_degrees(),
-        (estimated.translation - tt).length() * 1000.0,
-    )
+    crate::eval::pose_error_of(estimated.rotation, estimated.translation, truth)
 }
 
 /// Tracks frames `frames` (consecutive, for the video mode) of the scene built from `spec`
@@ -170,6 +163,7 @@ pub fn tracking_errors(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DQuat;
 
     #[test]
     fn noise_is_deterministic_and_of_the_stated_size() {

@@ -5,7 +5,8 @@
 
 use pa_pipeline::ar::{ArSettings, Fill, Texturing};
 use pa_render::Renderer;
-use pa_scene::eval::{mean, run_scene, FrameMetrics};
+use pa_report::stats::{mean, median};
+use pa_scene::eval::{run_scene, FrameMetrics};
 use pa_scene::scene::{Background, CameraPath};
 use pa_scene::SceneSpec;
 
@@ -83,7 +84,7 @@ fn ours_beats_the_paper_and_keeps_its_floors() {
     let near_ours = near(&ours).expect("frames near the key");
     let far_ours = far(&ours).expect("frames far from the key");
     let far_novis = far(&no_vis).expect("frames far from the key");
-    let rot = pa_scene::eval::median(ours.iter().map(|m| m.rot_err_deg)).expect("poses");
+    let rot = median(ours.iter().map(|m| m.rot_err_deg)).expect("poses");
     println!(
         "tracked {tracked}/{}; prop PSNR ours {ours_prop:.2} dB, paper {paper_prop:.2}, \
          no visibility {novis_prop:.2}; within 15 deg of the key {near_ours:.2} dB; 20 deg or \

@@ -4,7 +4,7 @@
 //! Truth: the scene's own camera path. `propsalive eval` reports the same rows.
 
 use pa_render::Renderer;
-use pa_scene::eval::median;
+use pa_report::stats::median;
 use pa_scene::scene::{Background, CameraPath};
 use pa_scene::tracking::{tracking_errors, SensorNoise};
 use pa_scene::SceneSpec;

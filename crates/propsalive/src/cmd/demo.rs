@@ -14,7 +14,8 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use pa_pipeline::ar::ArSettings;
 use pa_render::Renderer;
-use pa_scene::eval::{mean, median, run_scene};
+use pa_report::stats::{mean, median};
+use pa_scene::eval::run_scene;
 use pa_scene::SceneSpec;
 
 #[derive(clap::Args)]
