@@ -123,29 +123,14 @@ fn vote(lv: &mut Level, field: &[u32], r: i32, out: &mut Vec<[f32; 3]>) {
 }
 
 fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
-    let (w, h) = (lv.w as i32, lv.h as i32);
     let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
     let mut sum = [0.0f32; 3];
     let mut n = 0.0f32;
     for dy in -r..=r {
         for dx in -r..=r {
-            let (qx, qy) = (px + dx, py + dy);
-            if qx < 0 || qy < 0 || qx >= w || qy >= h {
+            let Some(s) = implied_source(lv, field, (px, py), (dx, dy)) else {
                 continue;
-            }
-            let q = (qy * w + qx) as usize;
-            if lv.state[q] != HOLE {
-                continue;
-            }
-            let m = field[q] as i32;
-            let (sx, sy) = (m % w - dx, m / w - dy);
-            if sx < 0 || sy < 0 || sx >= w || sy >= h {
-                continue;
-            }
-            let s = (sy * w + sx) as usize;
-            if lv.state[s] != KNOWN {
-                continue;
-            }
+            };
             add(&mut sum, lv.color[s]);
             n += 1.0;
         }
@@ -155,6 +140,33 @@ fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
     } else {
         lv.color[p]
     }
+}
+
+/// The source that the hole pixel at `(px + dx, py + dy)` implies for `(px, py)`: its match
+/// shifted back by `(dx, dy)`, when the neighbour lies inside the level and is a hole pixel,
+/// and that source lies inside the level and is known (PatchMatch's propagation, the vote).
+fn implied_source(
+    lv: &Level,
+    field: &[u32],
+    (px, py): (i32, i32),
+    (dx, dy): (i32, i32),
+) -> Option<usize> {
+    let (w, h) = (lv.w as i32, lv.h as i32);
+    let (nx, ny) = (px + dx, py + dy);
+    if nx < 0 || ny < 0 || nx >= w || ny >= h {
+        return None;
+    }
+    let n = (ny * w + nx) as usize;
+    if lv.state[n] != HOLE {
+        return None;
+    }
+    let m = field[n] as i32;
+    let (sx, sy) = (m % w - dx, m / w - dy);
+    if sx < 0 || sy < 0 || sx >= w || sy >= h {
+        return None;
+    }
+    let s = (sy * w + sx) as usize;
+    (lv.state[s] == KNOWN).then_some(s)
 }
 
 fn cost_of(params: &PatchParams, level: usize) -> Cost {
@@ -206,18 +218,11 @@ fn greedy_start(lv: &mut Level, field: &mut [u32], cost: &Cost, rng: &mut Rng) {
         };
         for dy in -1..=1 {
             for dx in -1..=1 {
-                let (nx, ny) = (px + dx, py + dy);
-                if (dx, dy) == (0, 0) || nx < 0 || ny < 0 || nx >= w || ny >= h {
+                if (dx, dy) == (0, 0) {
                     continue;
                 }
-                let n = (ny * w + nx) as usize;
-                if lv.state[n] != HOLE {
-                    continue;
-                }
-                let m = field[n] as i32;
-                let (sx, sy) = (m % w - dx, m / w - dy);
-                if sx >= 0 && sy >= 0 && sx < w && sy < h {
-                    consider(lv, (sy * w + sx) as usize, &mut best, &mut best_cost);
+                if let Some(s) = implied_source(lv, field, (px, py), (dx, dy)) {
+                    consider(lv, s, &mut best, &mut best_cost);
                 }
             }
         }
@@ -369,21 +374,10 @@ fn improve(
     let mut best = field[p] as usize;
     let mut best_cost = total_cost(lv, field, cost, p, best, f32::INFINITY);
     for &(dx, dy) in dirs {
-        let (nx, ny) = (px + dx, py + dy);
-        if nx < 0 || ny < 0 || nx >= w || ny >= h {
+        let Some(s) = implied_source(lv, field, (px, py), (dx, dy)) else {
             continue;
-        }
-        let n = (ny * w + nx) as usize;
-        if lv.state[n] != HOLE {
-            continue;
-        }
-        let m = field[n] as i32;
-        let (sx, sy) = (m % w - dx, m / w - dy);
-        if sx < 0 || sy < 0 || sx >= w || sy >= h {
-            continue;
-        }
-        let s = (sy * w + sx) as usize;
-        if s == best || lv.state[s] != KNOWN {
+        };
+        if s == best {
             continue;
         }
         let c = total_cost(lv, field, cost, p, s, best_cost);
