@@ -9,7 +9,7 @@
 //! 16 column-major values), `camera.txt` (`fx fy cx cy width height`) and `board.json`.
 //! `--noise` degrades each frame with pa-scene's handheld sensor noise (blur and 15 levels).
 //!
-//! `run DIR [--threads T] [--reps R] [--c NAME=FILE]...`: times our detector (default settings,
+//! `run DIR [--threads T] [--reps R] [--only TEXT] [--c NAME=FILE]...`: times our detector (default settings,
 //! and the other settings listed below) on those frames on a rayon pool of T threads (default
 //! 2), R runs per frame (default 5), and prints one table row per detector: time per frame
 //! (median, p95 over all runs), tags found (of the true tags whose four corners are inside
@@ -413,8 +413,13 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
             DetectorConfig::c_reference(),
         ),
     ];
+    // `--only TEXT`: just the detectors whose name contains TEXT (e.g. under `perf`).
+    let only = arg_value(args, "--only");
     let mut outcomes = Vec::new();
     for (name, cfg) in configs {
+        if only.as_ref().is_some_and(|o| !name.contains(o.as_str())) {
+            continue;
+        }
         let mut detector = Detector::new(cfg)?;
         let mut detections = Vec::new();
         let mut times_ms = Vec::new();
