@@ -409,6 +409,13 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
         ("ours default", DetectorConfig::default()),
         ("ours fast (decimate 2, refined)", DetectorConfig::fast()),
         (
+            "ours fast, min_white_black_diff 5 (the C library's)",
+            DetectorConfig {
+                min_white_black_diff: 5,
+                ..DetectorConfig::fast()
+            },
+        ),
+        (
             "ours c_reference (decimate 1)",
             DetectorConfig::c_reference(),
         ),

@@ -79,6 +79,10 @@ int main(int argc, char **argv) {
     apriltag_detector_add_family_bits(td, tf, 2);
     td->quad_decimate = decimate;
     td->nthreads = threads;
+    /* APRILTAG_MIN_WB_DIFF: the binarisation's min_white_black_diff (library default 5;
+     * pa-track's default is 20), to separate that setting from the implementations. */
+    const char *wb = getenv("APRILTAG_MIN_WB_DIFF");
+    if (wb) td->qtp.min_white_black_diff = atoi(wb);
     double *times = malloc(sizeof(double) * (size_t)n * (size_t)reps);
     int nt = 0;
     for (int f = 0; f < n; f++) {
@@ -112,8 +116,8 @@ int main(int argc, char **argv) {
         free_pgm(im);
     }
     qsort(times, (size_t)nt, sizeof(double), cmp);
-    printf("decimate %g, %d threads: %d runs, median %.3f ms, p95 %.3f ms\n", decimate, threads,
-           nt, times[(nt - 1) / 2], times[(int)((nt - 1) * 0.95 + 0.5)]);
+    printf("decimate %g, %d threads, min_white_black_diff %d: %d runs, median %.3f ms, p95 %.3f ms\n", decimate, threads,
+           td->qtp.min_white_black_diff, nt, times[(nt - 1) / 2], times[(int)((nt - 1) * 0.95 + 0.5)]);
     fclose(out);
     free(times);
     apriltag_detector_destroy(td);
