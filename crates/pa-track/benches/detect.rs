@@ -1,6 +1,6 @@
 //! Criterion benches of the track stage on a 1280x720 frame of the generated scene (the
 //! built-in prop on the eight-tag board, wood table, lit, handheld camera; rendered by
-//! pa-scene): full-frame AprilTag detection, the board pose from those detections, and the
+//! pa-scene): full-frame AprilTag detection (default settings, and `DetectorConfig::fast`), the board pose from those detections, and the
 //! tracker's steady-state update (region-of-interest search once tracked, then pose and
 //! filtering). Skips with a message when no wgpu adapter is available.
 //!
@@ -61,6 +61,15 @@ fn main() {
     let mut g = c.benchmark_group("track_1280x720");
     g.bench_function("detect_full_frame", |b| {
         b.iter(|| detector.detect(black_box(&image)).expect("detect"))
+    });
+    // The per-still preset: quad search at decimation 2, edges refined at full resolution.
+    let mut fast = Detector::new(DetectorConfig::fast()).expect("detector");
+    println!(
+        "fast preset: {} tags detected",
+        fast.detect(&image).expect("detect").len()
+    );
+    g.bench_function("detect_full_frame_fast", |b| {
+        b.iter(|| fast.detect(black_box(&image)).expect("detect"))
     });
     g.bench_function("board_pose_from_detections", |b| {
         b.iter(|| {

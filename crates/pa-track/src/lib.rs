@@ -16,7 +16,9 @@
 //! quarter-resolution fallback pass when nothing is found (tags that fill a large frame).
 //! [`DetectorConfig::thorough`] adds a pass on the frame upsampled 2x (bilinear, pixel-centre
 //! aligned; corners mapped back by `x = (u + 0.5) / 2 - 0.5`) for very small tags; it costs
-//! several times a normal pass. The quad fit and decoding are our own implementation of the
+//! several times a normal pass. [`DetectorConfig::fast`] is the per-still speed preset: the
+//! quad search at decimation 2 only, its quads edge-refined at full resolution (the C
+//! library's `quad_decimate = 2`); it misses more small tags than the default. The quad fit and decoding are our own implementation of the
 //! AprilTag 3 algorithm, with the AprilTag library's family code tables vendored under
 //! `data/tags/` (module `family`). On the conformance photos (47 tags, C library reference,
 //! JPEG luma): `default()` and `c_reference()` both find 47/47 with a median corner
