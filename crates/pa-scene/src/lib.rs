@@ -24,7 +24,7 @@ pub mod variant;
 
 pub use error::{SceneError, SetProblem};
 pub use prop::{prop_glb, prop_model, PropSpec};
-pub use scene::{Scene, SceneFrame, SceneSpec};
+pub use scene::{CoverSheet, Scene, SceneFrame, SceneSpec, SheetLook};
 pub use variant::{parse_variant, Placement, SceneVariant, SetOptions};
 
 #[cfg(test)]
