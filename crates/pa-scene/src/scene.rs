@@ -26,6 +26,7 @@ use pa_render::{
 use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
+use crate::hide::TruthSheet;
 use crate::prop::{prop_model, value_noise, PropSpec};
 use crate::shadow::PlaneShadows;
 use crate::variant::{fill_light, shadow_lights, PlaneLighting, SetOptions, CONTACT};
@@ -73,6 +74,9 @@ pub struct SceneSpec {
     pub supersample: u32,
     /// What a real set adds (shadows, placement, fill light); all off by default.
     pub set: SetOptions,
+    /// What the ground truth shows where the board's sheet is (the board by default; the
+    /// truth of the pipeline's hiding of it, [`crate::hide`]).
+    pub truth_sheet: TruthSheet,
 }
 
 impl Default for SceneSpec {
@@ -90,6 +94,7 @@ impl Default for SceneSpec {
             prop: PropSpec::default(),
             supersample: 2,
             set: SetOptions::default(),
+            truth_sheet: TruthSheet::Board,
         }
     }
 }
@@ -311,6 +316,8 @@ pub struct Scene {
     table: (GpuMesh, GpuTexture),
     sheet: (GpuMesh, GpuTexture),
     path: Vec<Mat4>,
+    /// The cover of [`TruthSheet::Cover`], uploaded.
+    truth_cover: Option<CoverSheet>,
 }
 
 /// Clip planes of the set's cameras.
@@ -338,7 +345,7 @@ impl Scene {
             renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0, lit))?;
         let sheet_tex = renderer.upload_texture(&board_texture(&board, 2080)?)?;
         let path = camera_path(&spec);
-        Ok(Self {
+        let mut scene = Self {
             spec,
             model,
             intrinsics,
@@ -347,7 +354,17 @@ impl Scene {
             table: (table_mesh, table_tex),
             sheet: (sheet_mesh, sheet_tex),
             path,
-        })
+            truth_cover: None,
+        };
+        if let TruthSheet::Cover {
+            picture,
+            min_m,
+            max_m,
+        } = &scene.spec.truth_sheet
+        {
+            scene.truth_cover = Some(scene.cover_sheet(renderer, picture, *min_m, *max_m)?);
+        }
+        Ok(scene)
     }
 
     /// The animation time of camera frame `i`.
@@ -516,7 +533,13 @@ impl Scene {
         let time_s = self.time_s(i);
         let camera_from_marker = self.camera_from_marker(i);
         let input = self.render(renderer, camera_from_marker, Some(key_time))?;
-        let ground_truth = self.render(renderer, camera_from_marker, Some(time_s))?;
+        let look = match (&self.spec.truth_sheet, &self.truth_cover) {
+            (TruthSheet::Bare, _) => SheetLook::Bare,
+            (TruthSheet::Cover { .. }, Some(c)) => SheetLook::Cover(c),
+            _ => SheetLook::Board,
+        };
+        let ground_truth =
+            self.render_with_sheet(renderer, camera_from_marker, Some(time_s), look)?;
         Ok(SceneFrame {
             index: i,
             time_s,

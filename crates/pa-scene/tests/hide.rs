@@ -22,34 +22,7 @@ use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec, SheetLook};
 use pa_testkit::golden::{assert_golden, Tolerance};
 
-/// A 480x360 picture with structure in both directions and no symmetry (a mirrored or turned
-/// cover shows): colour ramps, a disc off-centre, diagonal stripes in one corner.
-fn picture() -> CpuTexture {
-    let (w, h) = (480u32, 360u32);
-    let mut rgba8 = Vec::with_capacity((w * h * 4) as usize);
-    for y in 0..h {
-        for x in 0..w {
-            let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
-            let mut p = [
-                (40.0 + 200.0 * u) as u8,
-                (60.0 + 160.0 * v) as u8,
-                (200.0 - 150.0 * u * v) as u8,
-            ];
-            if (u - 0.3).powi(2) + (v - 0.4).powi(2) < 0.02 {
-                p = [230, 200, 40];
-            }
-            if u > 0.7 && v > 0.6 && ((x + y) / 12) % 2 == 0 {
-                p = [30, 30, 40];
-            }
-            rgba8.extend_from_slice(&[p[0], p[1], p[2], 255]);
-        }
-    }
-    CpuTexture {
-        width: w,
-        height: h,
-        rgba8,
-    }
-}
+use pa_scene::hide::cover_picture as picture;
 
 fn image(t: &CpuTexture) -> ImageRgba8 {
     ImageRgba8::new(t.width, t.height, t.rgba8.clone()).expect("picture")
