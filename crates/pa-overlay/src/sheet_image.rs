@@ -1,8 +1,8 @@
 //! A picture printed at true size (`propsalive marker --image PICTURE --width-mm W`): the
 //! picture `W` mm wide (its height from its aspect), a white margin, and below it a thin
-//! scale bar (the longest of 100, 50, 20, 10 mm that fits the picture's width, ticks every
-//! 10 mm, or 1 mm... for the shortest bars, every 5 mm for 20 mm, 2 mm for 10 mm) and a label
-//! with the width, so that a print at the wrong scale is seen with a ruler.
+//! scale bar (the longest of 100, 50, 20, 10 mm that fits the picture's width; ticks every
+//! 10 mm, every 5 mm on a 20 mm bar, every 2 mm on a 10 mm bar) and a label with the width,
+//! so that a print at the wrong scale is seen with a ruler.
 //!
 //! Two renderings, as the tag sheets ([`crate::sheet`]): an SVG at physical size (`width`,
 //! `height` in mm; the picture embedded as a PNG data URI, the bar as lines, the label as
