@@ -39,6 +39,7 @@
 //!
 //! Run `cargo run --release -p pa-diminish --example fill_timing` for the timings.
 
+pub mod cover;
 pub mod error;
 pub mod mask;
 pub mod metrics;
@@ -49,6 +50,9 @@ pub mod rect_fill;
 pub mod shadow;
 pub mod types;
 
+pub use cover::{
+    fit_shading, paste_cover, CoverImage, CoverStats, Paper, SheetCoords, SheetShading,
+};
 pub use error::DiminishError;
 pub use mask::{dilate, dilate_in_bbox, dilate_in_place, mask_from_depth, DilateShape};
 pub use metrics::{mse_rgb, psnr_rgb};

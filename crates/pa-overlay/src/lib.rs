@@ -22,6 +22,7 @@ pub mod hud;
 pub mod layout;
 pub mod meter;
 pub mod sheet;
+pub mod sheet_image;
 pub mod state;
 
 use pa_track::TagFamily;
@@ -69,6 +70,13 @@ pub enum OverlayError {
         size_mm: f64,
         min_gap_mm: f64,
     },
+    /// A picture's printed width is not in [10, 5000] mm.
+    #[error("--width-mm must be in [10, 5000], got {width_mm}")]
+    WidthOutOfRange { width_mm: f64 },
+    /// A picture too small to print (a side under 16 pixels) or too large to read (over
+    /// 100 million pixels).
+    #[error("the picture is {width}x{height} pixels: it needs at least 16 a side and at most 100 million")]
+    PictureSize { width: u32, height: u32 },
     /// The PNG would have more than 400 million pixels.
     #[error("the PNG would be {width_px:.0}x{height_px:.0} pixels; lower --dpi")]
     PngTooLarge { width_px: f64, height_px: f64 },

@@ -661,6 +661,15 @@ pub fn encode_png(
 ) -> Result<Vec<u8>, OverlayError> {
     let mut png = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    with_png_metadata(png, dpi, text)
+}
+
+/// Inserts the DPI (`pHYs`) and `tEXt` metadata after an encoded PNG's `IHDR`.
+pub(crate) fn with_png_metadata(
+    png: Vec<u8>,
+    dpi: f64,
+    text: &[(&str, &str)],
+) -> Result<Vec<u8>, OverlayError> {
     // The signature (8 bytes) and IHDR (4 + 4 + 13 + 4) come first; insert after IHDR.
     if png.len() < 33 || &png[12..16] != b"IHDR" {
         return Err(OverlayError::PngLayout);

@@ -16,6 +16,8 @@
 //!
 //! [marker]
 //! family = "tag36h11"
+//! hide = "none"                 # optional: none, cover, plate (see crate::shot_hide)
+//! # cover = "rug.png"           # the picture over the board (hide = cover)
 //! [[marker.tags]]               # board layout, marker frame (metres); one entry = one tag
 //! id = 0
 //! center_m = [0.0, 0.0]
@@ -230,6 +232,12 @@ pub struct ShotMarker {
     #[serde(default = "default_family")]
     pub family: String,
     pub tags: Vec<ShotTag>,
+    /// What replaces the board in the final frames ([`crate::shot_hide`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hide: Option<String>,
+    /// The picture over the board ([`crate::shot_hide`]), relative to the shot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cover: Option<PathBuf>,
 }
 
 fn default_family() -> String {
@@ -473,7 +481,8 @@ impl Shot {
                 p.scale
             )));
         }
-        crate::shot_diminish::check(&self.diminish, path)
+        crate::shot_diminish::check(&self.diminish, path)?;
+        crate::shot_hide::check(self, path)
     }
 
     /// Checks the shot against its model: the clip exists, every key frame is inside the

@@ -194,7 +194,7 @@ fn unknown_keys_are_refused_not_dropped() {
         (
             "unknown_key_marker_image.toml",
             ":18:1: unknown key `marker.image` in [marker]: the file is shot format 1, which has \
-             no such key ([marker] knows family, tags)",
+             no such key ([marker] knows family, tags, hide, cover)",
         ),
         (
             "misspelt_section_placment.toml",

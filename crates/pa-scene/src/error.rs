@@ -37,6 +37,9 @@ pub enum SceneError {
     /// A scene variant name that does not exist (`--scene`).
     #[error("unknown scene variant \"{name}\" (known: {known})")]
     UnknownVariant { name: String, known: String },
+    /// A hiding of the board that does not exist (`demo --hide`).
+    #[error("unknown hide \"{given}\" (known: cover, plate)")]
+    UnknownHide { given: String },
     /// A file of an external set (manifest, image) or of its kit.
     #[error("{}: {problem}", file.display())]
     Set {

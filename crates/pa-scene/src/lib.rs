@@ -14,6 +14,7 @@
 mod error;
 pub mod eval;
 pub mod flicker;
+pub mod hide;
 pub mod methods;
 pub mod prop;
 pub mod scene;
@@ -23,8 +24,9 @@ pub mod tracking;
 pub mod variant;
 
 pub use error::{SceneError, SetProblem};
+pub use hide::{HideKind, TruthSheet};
 pub use prop::{prop_glb, prop_model, PropSpec};
-pub use scene::{Scene, SceneFrame, SceneSpec};
+pub use scene::{CoverSheet, Scene, SceneFrame, SceneSpec, SheetLook};
 pub use variant::{parse_variant, Placement, SceneVariant, SetOptions};
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ use pa_render::{
 use pa_track::board::BoardTag;
 use pa_track::{Board, TagFamily};
 
+use crate::hide::TruthSheet;
 use crate::prop::{prop_model, value_noise, PropSpec};
 use crate::shadow::PlaneShadows;
 use crate::variant::{fill_light, shadow_lights, PlaneLighting, SetOptions, CONTACT};
@@ -73,6 +74,9 @@ pub struct SceneSpec {
     pub supersample: u32,
     /// What a real set adds (shadows, placement, fill light); all off by default.
     pub set: SetOptions,
+    /// What the ground truth shows where the board's sheet is (the board by default; the
+    /// truth of the pipeline's hiding of it, [`crate::hide`]).
+    pub truth_sheet: TruthSheet,
 }
 
 impl Default for SceneSpec {
@@ -90,6 +94,7 @@ impl Default for SceneSpec {
             prop: PropSpec::default(),
             supersample: 2,
             set: SetOptions::default(),
+            truth_sheet: TruthSheet::Board,
         }
     }
 }
@@ -311,6 +316,8 @@ pub struct Scene {
     table: (GpuMesh, GpuTexture),
     sheet: (GpuMesh, GpuTexture),
     path: Vec<Mat4>,
+    /// The cover of [`TruthSheet::Cover`], uploaded.
+    truth_cover: Option<CoverSheet>,
 }
 
 /// Clip planes of the set's cameras.
@@ -338,7 +345,7 @@ impl Scene {
             renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0, lit))?;
         let sheet_tex = renderer.upload_texture(&board_texture(&board, 2080)?)?;
         let path = camera_path(&spec);
-        Ok(Self {
+        let mut scene = Self {
             spec,
             model,
             intrinsics,
@@ -347,7 +354,17 @@ impl Scene {
             table: (table_mesh, table_tex),
             sheet: (sheet_mesh, sheet_tex),
             path,
-        })
+            truth_cover: None,
+        };
+        if let TruthSheet::Cover {
+            picture,
+            min_m,
+            max_m,
+        } = &scene.spec.truth_sheet
+        {
+            scene.truth_cover = Some(scene.cover_sheet(renderer, picture, *min_m, *max_m)?);
+        }
+        Ok(scene)
     }
 
     /// The animation time of camera frame `i`.
@@ -418,6 +435,18 @@ impl Scene {
         camera_from_marker: Mat4,
         prop_time_s: Option<f32>,
     ) -> Result<RenderedFrame, RenderError> {
+        self.render_with_sheet(renderer, camera_from_marker, prop_time_s, SheetLook::Board)
+    }
+
+    /// The set with its board sheet as `sheet` says (the truth of the pipeline's hiding of
+    /// the marker), the prop at `prop_time_s` if any, from `camera_from_marker`.
+    pub fn render_with_sheet(
+        &self,
+        renderer: &mut Renderer,
+        camera_from_marker: Mat4,
+        prop_time_s: Option<f32>,
+        sheet_look: SheetLook<'_>,
+    ) -> Result<RenderedFrame, RenderError> {
         let s = self.spec.supersample.clamp(1, 4);
         let (w, h) = (self.spec.width * s, self.spec.height * s);
         let camera = CpuCamera {
@@ -428,10 +457,18 @@ impl Scene {
         };
         let mut table = Draw::new(&self.table.0, Mat4::IDENTITY);
         table.texture = Some(&self.table.1);
-        let mut sheet = Draw::new(&self.sheet.0, Mat4::IDENTITY);
-        sheet.texture = Some(&self.sheet.1);
+        let mut draws = vec![table];
+        let sheet_draw = match sheet_look {
+            SheetLook::Board => Some((&self.sheet.0, &self.sheet.1, Mat4::IDENTITY)),
+            SheetLook::Bare => None,
+            SheetLook::Cover(c) => Some((&c.mesh, &c.texture, c.marker_from_sheet)),
+        };
+        if let Some((mesh, texture, m)) = sheet_draw {
+            let mut sheet = Draw::new(mesh, m);
+            sheet.texture = Some(texture);
+            draws.push(sheet);
+        }
         let frame;
-        let mut draws = vec![table, sheet];
         if let Some(t) = prop_time_s {
             let pose = anim::sample(&self.model, 0, t);
             frame = self.twin.frame(&self.model, &pose, self.marker_from_prop());
@@ -496,7 +533,13 @@ impl Scene {
         let time_s = self.time_s(i);
         let camera_from_marker = self.camera_from_marker(i);
         let input = self.render(renderer, camera_from_marker, Some(key_time))?;
-        let ground_truth = self.render(renderer, camera_from_marker, Some(time_s))?;
+        let look = match (&self.spec.truth_sheet, &self.truth_cover) {
+            (TruthSheet::Bare, _) => SheetLook::Bare,
+            (TruthSheet::Cover { .. }, Some(c)) => SheetLook::Cover(c),
+            _ => SheetLook::Board,
+        };
+        let ground_truth =
+            self.render_with_sheet(renderer, camera_from_marker, Some(time_s), look)?;
         Ok(SceneFrame {
             index: i,
             time_s,
@@ -552,6 +595,82 @@ impl Scene {
         prop_time_s: Option<f32>,
     ) -> Result<RenderedFrame, RenderError> {
         self.render(renderer, camera_from_marker, prop_time_s)
+    }
+}
+
+/// What lies on the table where the board's sheet is ([`Scene::render_with_sheet`]).
+#[derive(Clone, Copy)]
+pub enum SheetLook<'a> {
+    /// The printed board (every other render of the set).
+    Board,
+    /// No sheet: the table.
+    Bare,
+    /// Another picture printed on the same paper ([`Scene::cover_sheet`]).
+    Cover(&'a CoverSheet),
+}
+
+/// A picture printed on the board's paper, uploaded: a sheet over a rectangle of the marker
+/// plane.
+pub struct CoverSheet {
+    mesh: GpuMesh,
+    texture: GpuTexture,
+    marker_from_sheet: Mat4,
+}
+
+impl Scene {
+    /// `picture` printed on the sheet's paper (its white is the paper's, 245/255; each channel
+    /// the picture's reflectance times the paper's, in linear light) over the rectangle
+    /// `min_m`..`max_m` of the marker plane (+X along the picture's width, +Y down it), lying
+    /// on the table like the board, lit like it.
+    pub fn cover_sheet(
+        &self,
+        renderer: &mut Renderer,
+        picture: &CpuTexture,
+        min_m: glam::Vec2,
+        max_m: glam::Vec2,
+    ) -> Result<CoverSheet, RenderError> {
+        let lit = self.spec.set.shadows || self.spec.set.fill_light;
+        let half = (max_m - min_m) * 0.5;
+        let centre = (min_m + max_m) * 0.5;
+        let mesh = renderer.upload_mesh(&quad(half.x, half.y, 0.0, lit))?;
+        let paper = srgb_to_linear(245.0 / 255.0);
+        let rgba8 = picture
+            .rgba8
+            .chunks_exact(4)
+            .flat_map(|p| {
+                let c = |v: u8| {
+                    (linear_to_srgb(srgb_to_linear(v as f32 / 255.0) * paper) * 255.0 + 0.5) as u8
+                };
+                [c(p[0]), c(p[1]), c(p[2]), 255]
+            })
+            .collect();
+        let texture = renderer.upload_texture(&CpuTexture {
+            width: picture.width,
+            height: picture.height,
+            rgba8,
+        })?;
+        Ok(CoverSheet {
+            mesh,
+            texture,
+            marker_from_sheet: Mat4::from_translation(centre.extend(0.0)),
+        })
+    }
+}
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(l: f32) -> f32 {
+    let l = l.clamp(0.0, 1.0);
+    if l <= 0.003_130_8 {
+        12.92 * l
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
     }
 }
 

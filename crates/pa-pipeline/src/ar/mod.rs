@@ -15,6 +15,7 @@
 mod config;
 mod fill;
 mod frame;
+mod hide;
 mod shadows;
 #[cfg(test)]
 mod tests;
@@ -35,6 +36,7 @@ use crate::twin::GpuTwin;
 pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
+pub use hide::{BoardSheet, Hide, SHEET_MARGIN_M};
 pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};
@@ -67,6 +69,9 @@ pub enum ArError {
     /// The fill mask was not made before the fill (an internal invariant).
     #[error("fill mask missing")]
     FillMaskMissing,
+    /// The board sheet to hide cannot be made ([`BoardSheet::from_board`]).
+    #[error("board sheet: {reason}")]
+    BadSheet { reason: &'static str },
 }
 
 /// Everything the pipeline keeps between frames.
@@ -93,6 +98,8 @@ pub struct ArPipeline {
     shadows: shadows::ShadowState,
     /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
     patch_prior: Option<fill::PatchState>,
+    /// What replaces the board sheet, if anything ([`Hide`]).
+    hide: Option<hide::HideState>,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -163,6 +170,7 @@ impl ArPipeline {
             keep_passes: false,
             shadows: shadows::ShadowState::default(),
             patch_prior: None,
+            hide: None,
         })
     }
 
@@ -371,6 +379,8 @@ impl ArPipeline {
             None => view,
         };
         let mut background = self.diminish(&fill_view, &textured)?;
+        // No marker in the final frame: the board sheet replaced (hide.rs).
+        self.hide_sheet(&view, &mut background)?;
         timings.diminish_ms = ms(t);
         let Textured {
             key_mask,

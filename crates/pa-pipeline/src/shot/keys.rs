@@ -42,7 +42,7 @@ pub const KNOWN_KEYS: &[(&str, &[&str])] = &[
     ),
     ("key_poses", &["name", "frame", "marker_id"]),
     ("camera", &["calibration", "fov_y_deg"]),
-    ("marker", &["family", "tags"]),
+    ("marker", &["family", "tags", "hide", "cover"]),
     ("marker.tags", &["id", "center_m", "size_m"]),
     (
         "placement",

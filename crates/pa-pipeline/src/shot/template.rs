@@ -113,6 +113,10 @@ impl NewShot {
         line("# Print it with the prop's footprint: propsalive marker --shot THIS_FILE --out STEM");
         line("[marker]");
         line(&format!("family = {}", toml_string("tag36h11")));
+        line("# No board in the final frames: hide = \"cover\" lays a picture over the sheet (lit");
+        line("# like it); hide = \"plate\" the table without the board (see the README).");
+        line("# hide = \"cover\"");
+        line("# cover = \"rug.png\"");
         for tag in &p.board.tags {
             line("[[marker.tags]]");
             line(&format!("id = {}", tag.id));

@@ -15,7 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pa_pipeline::ar::ArSettings;
 use pa_render::Renderer;
 use pa_report::stats::{mean, median};
-use pa_scene::eval::run_scene;
+use pa_scene::eval::run_scene_setup;
 use pa_scene::SceneSpec;
 
 #[derive(clap::Args)]
@@ -33,6 +33,11 @@ pub struct Args {
     /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them).
     #[arg(long, default_value = "default")]
     pub scene: String,
+    /// Hide the board in the output: cover (a picture laid over the sheet, lit like it) or
+    /// plate (the table without the board, from the first frame's view); the ground truth
+    /// then shows the same.
+    #[arg(long, value_name = "MODE")]
+    pub hide: Option<String>,
 }
 
 fn save_png(path: &Path, w: u32, h: u32, rgba: &[u8]) -> Result<()> {
@@ -70,6 +75,13 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(b) = variant.background {
         spec.background = b;
     }
+    let hide: Option<pa_scene::HideKind> = match &args.hide {
+        Some(h) => Some(h.parse()?),
+        None => None,
+    };
+    if let Some(kind) = hide {
+        spec.truth_sheet = pa_scene::hide::truth_sheet(kind)?;
+    }
     let glb = pa_scene::prop_glb(&spec.prop).map_err(anyhow::Error::msg)?;
     pa_model::export::write_atomic(&args.out.join("prop.glb"), &glb)?;
     let mut renderer = Renderer::new()?;
@@ -87,12 +99,17 @@ pub fn run(args: Args) -> Result<()> {
     let mut options = pa_video::Mp4WriterOptions::new(pa_video::Fps::from_f64(spec.fps as f64)?);
     options.overwrite = true;
     let mut mp4 = pa_video::Mp4Writer::create(&mp4_path, w, h, options)?;
-    let metrics = run_scene(
+    let metrics = run_scene_setup(
         &mut renderer,
         spec.clone(),
         ArSettings::ours(),
         0..spec.frames,
-        |f, out, m| {
+        false,
+        |scene, r, p| match hide {
+            Some(kind) => pa_scene::hide::apply(scene, r, p, kind),
+            None => Ok(()),
+        },
+        |f, out, m, _| {
             let name = format!("frame_{:04}.png", f.index);
             save_png(&out_dir.join("frames").join(&name), w, h, &out.rgba8)?;
             mp4.write_frame(&out.rgba8)?;
@@ -148,6 +165,12 @@ pub fn run(args: Args) -> Result<()> {
     let mut report = report;
     if !(variant.set.is_default() && variant.background.is_none()) {
         let _ = write!(report, "\nSet: `--scene {}`.\n", args.scene);
+    }
+    if let Some(h) = &args.hide {
+        let _ = write!(
+            report,
+            "\nBoard hidden: `--hide {h}` (the ground truth shows the same).\n"
+        );
     }
     pa_model::export::write_atomic(&args.out.join("report.md"), report.as_bytes())?;
     out!("{report}");

@@ -38,13 +38,20 @@ pub struct Args {
     pub id: u32,
     /// Side of the tag's black border square in millimetres (what the tracker calls the
     /// tag size).
-    #[arg(long, required_unless_present = "shot")]
+    #[arg(long, required_unless_present_any = ["shot", "image"])]
     pub size_mm: Option<f64>,
     /// Print a shot's board (its `[[marker.tags]]`) with the footprint of each key prop (the
     /// outline of where its key pose touches the table, its name and a front arrow) instead
     /// of --family/--id/--board/--size-mm.
     #[arg(long, conflicts_with_all = ["board", "size_mm", "id", "family"])]
     pub shot: Option<PathBuf>,
+    /// Print a picture at true size (with a scale bar) instead of a tag:
+    /// `--image PICTURE --width-mm W` (`cmd/marker_image.rs`).
+    #[arg(long, requires = "width_mm", conflicts_with_all = ["board", "size_mm", "shot"])]
+    pub image: Option<PathBuf>,
+    /// The picture's printed width in millimetres (its height follows its aspect).
+    #[arg(long, requires = "image")]
+    pub width_mm: Option<f64>,
     /// Resolution of the PNG in dots per inch.
     #[arg(long, default_value_t = 300.0)]
     pub dpi: f64,
@@ -224,6 +231,16 @@ fn describe(sheet: &Sheet, path: &Path) -> String {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if let (Some(picture), Some(w)) = (&args.image, args.width_mm) {
+        return super::marker_image::run(
+            picture,
+            w,
+            args.dpi,
+            args.margin_mm,
+            &args.out,
+            args.force,
+        );
+    }
     let out = resolve(&args)?;
     write_sheet(&out)?;
     let sheet = &out.sheet;

@@ -122,6 +122,9 @@ pub struct Args {
     /// the fills, `S` toggles shadows.
     #[command(flatten)]
     pub diminish: crate::cmd::run::diminish::DiminishArgs,
+    /// What replaces the board (overriding the shot's `[marker] hide`; a shot only).
+    #[command(flatten)]
+    pub hide: crate::cmd::run::hide::HideArgs,
 }
 
 /// The command's long help: what it does and the keys.
@@ -834,6 +837,9 @@ pub fn run(args: Args) -> Result<()> {
     if args.shot.is_none() && args.camera_size.is_some() {
         bail!("--camera-size is for a camera input: `propsalive preview SHOT.toml --input camera:/dev/videoN --camera-size WxH`");
     }
+    if args.shot.is_none() && args.hide.overrides() != Default::default() {
+        bail!("--hide and --cover are for a shot (its board): `propsalive preview SHOT.toml --input ... --hide cover --cover FILE`");
+    }
     if args.shot.is_some() && args.size.is_some() {
         bail!("--size is for the built-in scene; stills are shown at their own size");
     }
@@ -842,7 +848,13 @@ pub fn run(args: Args) -> Result<()> {
     let setup = match (&args.shot, &args.input) {
         (None, None) => setup::setup_scene(args.size.as_deref(), &args.diminish)?,
         (Some(shot), Some(input)) => {
-            setup::setup_shot(shot, input, args.camera_size.as_deref(), &args.diminish)?
+            setup::setup_shot(
+                shot,
+                input,
+                args.camera_size.as_deref(),
+                &args.diminish,
+                &args.hide,
+            )?
         }
         (Some(_), None) => bail!(
             "a shot needs --input FOLDER, VIDEO or camera:/dev/videoN; run `propsalive preview` with no arguments for the built-in scene"

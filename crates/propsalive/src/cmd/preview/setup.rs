@@ -146,9 +146,11 @@ pub fn setup_shot(
     input: &Path,
     camera_size: Option<&str>,
     flags: &DiminishArgs,
+    hide_flags: &run::hide::HideArgs,
 ) -> Result<Setup> {
     let shot = Shot::load(shot_path)?;
     let d = flags.resolve(&shot, shot_path)?;
+    let hide = hide_flags.resolve(&shot, shot_path, &d)?;
     let mut first_still = None;
     let spec = run::parse_input(input)?;
     if camera_size.is_some() && !matches!(spec, InputSpec::Camera(_)) {
@@ -250,6 +252,7 @@ pub fn setup_shot(
         None => None,
     };
     let has_plate = plate.is_some();
+    let plate_pose = plate.as_ref().map(|p| p.1);
     let mut pipeline = ArPipeline::new(
         &mut renderer,
         model,
@@ -258,6 +261,13 @@ pub fn setup_shot(
         shot.placement.marker_from_prop(),
         Some(tracker),
         ArSettings::ours(),
+    )?;
+    run::hide::apply(
+        &mut pipeline,
+        &hide,
+        &board_for_plate,
+        plate_pose,
+        (width, height),
     )?;
     let keys = shot
         .key_poses

@@ -75,6 +75,7 @@ use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 use pa_video::{Fps, Mp4Writer};
 
 pub mod diminish;
+pub mod hide;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -120,6 +121,9 @@ pub struct Args {
     /// How the real prop is removed (overriding the shot's `[diminish]`).
     #[command(flatten)]
     pub diminish: diminish::DiminishArgs,
+    /// What replaces the board (overriding the shot's `[marker] hide`).
+    #[command(flatten)]
+    pub hide: hide::HideArgs,
 }
 
 // --- input ---------------------------------------------------------------------------------
@@ -175,6 +179,8 @@ struct Config {
     plate_file: Option<PathBuf>,
     /// The first stills that are plate (passed through untouched).
     plate_frames: usize,
+    /// The shot's `[marker] hide` with the flags over it.
+    hide: pa_pipeline::shot_hide::HideConfig,
 }
 
 fn resolve(args: &Args) -> Result<(Config, InputSource)> {
@@ -193,6 +199,7 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
     let passes = PassSet::parse(&args.passes)?;
     let shot = Shot::load(&args.shot)?;
     let dim = args.diminish.resolve(&shot, &args.shot)?;
+    let hide_cfg = args.hide.resolve(&shot, &args.shot, &dim)?;
     let mut first_still = None;
     let shot_text = pa_io::read_regular(&args.shot, MAX_SHOT_BYTES, "a shot file")?;
     let input = parse_input(&args.input)?;
@@ -271,17 +278,23 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         key_time_s: key.frame as f32 / shot.fps,
         // Flags that change the diminish stage change the take's settings too (the shot's
         // own [diminish] is in its text); without them the hash is the shot's as before.
-        shot_hash: if args.diminish.overrides().is_empty() {
+        shot_hash: if args.diminish.overrides().is_empty()
+            && args.hide.overrides() == Default::default()
+        {
             hash_hex(&shot_text)
         } else {
             let mut text = shot_text.clone();
             text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
+            if args.hide.overrides() != Default::default() {
+                text.extend_from_slice(format!(" {}", hide_cfg.describe()).as_bytes());
+            }
             hash_hex(&text)
         },
         passes,
         plate_file: diminish::plate_file(&dim, first_still.as_deref())?,
         plate_frames: diminish::plate_frames(&dim),
         diminish: dim,
+        hide: hide_cfg,
     };
     Ok((cfg, source))
 }
@@ -376,7 +389,15 @@ impl FrameProcessor for PipelineProcessor<'_> {
                 )?),
                 None => None,
             };
+            let plate_pose = plate.as_ref().map(|p| p.1);
             diminish::apply(&mut pipeline, &cfg.diminish, plate)?;
+            hide::apply(
+                &mut pipeline,
+                &cfg.hide,
+                &cfg.board,
+                plate_pose,
+                (cfg.width, cfg.height),
+            )?;
             pipeline.set_keep_passes(self.keep_passes);
             self.started = Some((renderer, tracker, pipeline));
         }
