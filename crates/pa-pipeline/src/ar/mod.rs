@@ -15,6 +15,7 @@
 mod config;
 mod fill;
 mod frame;
+mod memory;
 mod shadows;
 #[cfg(test)]
 mod tests;
@@ -93,6 +94,8 @@ pub struct ArPipeline {
     shadows: shadows::ShadowState,
     /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
     patch_prior: Option<fill::PatchState>,
+    /// The key props' remembered appearance ([`memory`]); kept by `reset_tracker`.
+    memory: memory::TextureMemory,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -163,6 +166,7 @@ impl ArPipeline {
             keep_passes: false,
             shadows: shadows::ShadowState::default(),
             patch_prior: None,
+            memory: memory::TextureMemory::default(),
         })
     }
 
