@@ -226,11 +226,26 @@ pub fn run_scene_with<E: From<SceneError>>(
     settings: ArSettings,
     frames: impl IntoIterator<Item = u32>,
     keep_passes: bool,
+    each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_prepared(renderer, spec, settings, frames, keep_passes, |_, _, _| Ok(()), each)
+}
+
+/// [`run_scene_with`], with `prepare` given the scene and the pipeline before the first frame
+/// (the memory rows: [`crate::memory`]).
+pub fn run_scene_prepared<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    prepare: impl FnOnce(&Scene, &mut Renderer, &mut ArPipeline) -> Result<(), SceneError>,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
     pipeline.set_keep_passes(keep_passes);
+    prepare(&scene, renderer, &mut pipeline)?;
     let mut all = Vec::new();
     let mut flicker =
         Flicker::new(scene.intrinsics).with_plane_extent(f64::from(crate::scene::TABLE_M) * 0.5);

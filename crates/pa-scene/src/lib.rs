@@ -14,6 +14,7 @@
 mod error;
 pub mod eval;
 pub mod flicker;
+pub mod memory;
 pub mod methods;
 pub mod prop;
 pub mod scene;
