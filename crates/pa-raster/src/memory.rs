@@ -2,7 +2,11 @@
 //! in which the camera sees that vertex. The physical key prop always stands in its key pose,
 //! so a key-pose vertex that passes the live look-up's tests ([`crate::live::live_lookup`]:
 //! in the frame, facing the camera, not hidden in the visibility map) is a sample of its
-//! colour under the set's light.
+//! colour under the set's light. The memory keeps that colour (measured on the generated
+//! scene, `pa-scene/tests/texture_memory.rs`, the fallback pixels of a head turned 38
+//! degrees after a scan: remembered colours +0.65 dB over the lit model texture; remembered
+//! albedos, the colour over the fitted light at the key-pose normal and lit again at the
+//! in-between's, +0.23 dB; the seen light over the model's albedo -5.6 dB).
 //!
 //! Each vertex keeps a running weighted mean and variance of its samples (linear RGB). A
 //! sample's weight is the product of
