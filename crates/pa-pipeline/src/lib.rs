@@ -16,6 +16,7 @@ pub mod shadow;
 pub mod shot;
 pub mod shot_config;
 pub mod shot_diminish;
+pub mod shot_scan;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};

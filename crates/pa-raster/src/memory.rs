@@ -124,7 +124,7 @@ impl VertexMemory {
     /// Adds one sample of linear colour `rgb` with weight `w` to vertex `i`; returns whether
     /// it was taken as an outlier. Ignored when `i` is out of range or `w` is not positive.
     pub fn add_sample(&mut self, i: usize, rgb: [f32; 3], w: f32) -> bool {
-        if i >= self.weight.len() || !(w > 0.0) || rgb.iter().any(|c| !c.is_finite()) {
+        if i >= self.weight.len() || w.is_nan() || w <= 0.0 || rgb.iter().any(|c| !c.is_finite()) {
             return false;
         }
         let mut w = w;
@@ -150,10 +150,11 @@ impl VertexMemory {
         }
         // West's weighted incremental mean and variance.
         let total = self.weight[i] + w;
-        for c in 0..3 {
-            let delta = rgb[c] - self.mean[i][c];
-            self.mean[i][c] += delta * w / total;
-            self.m2[i][c] += w * delta * (rgb[c] - self.mean[i][c]);
+        let (mean, m2) = (&mut self.mean[i], &mut self.m2[i]);
+        for ((x, m), s2) in rgb.iter().zip(mean.iter_mut()).zip(m2.iter_mut()) {
+            let delta = x - *m;
+            *m += delta * w / total;
+            *s2 += w * delta * (x - *m);
         }
         self.weight[i] = total;
         outlier
@@ -232,10 +233,7 @@ impl VertexMemory {
 /// key pose's surface, less at its silhouette or next to a nearer part.
 fn visibility_margin(key_depth: &impl InvDepthMap, p: &LiveParams, pc: Vec3) -> f32 {
     let cam = &p.frame_camera;
-    let q = [
-        cam.fx * pc.x / pc.z + cam.cx,
-        cam.fy * pc.y / pc.z + cam.cy,
-    ];
+    let q = [cam.fx * pc.x / pc.z + cam.cx, cam.fy * pc.y / pc.z + cam.cy];
     let (x, y) = (q[0].round() as i32, q[1].round() as i32);
     let taps = [
         (x - MARGIN_PX, y),

@@ -38,7 +38,11 @@ fn weighted_mean_and_variance_are_exact() {
     assert!(!m.add_sample(0, [0.6; 3], 3.0));
     let c = m.colour(0).unwrap();
     assert!((c[0] - 0.5).abs() < 1e-6, "{c:?}");
-    assert!((m.variance(0)[1] - 0.03).abs() < 1e-6, "{:?}", m.variance(0));
+    assert!(
+        (m.variance(0)[1] - 0.03).abs() < 1e-6,
+        "{:?}",
+        m.variance(0)
+    );
     assert_eq!(m.weight(0), 4.0);
     assert_eq!(m.confidence(0), 1.0);
     // Unseen and out of range.
@@ -147,7 +151,11 @@ fn observe_samples_only_visible_front_facing_vertices_at_their_pixels() {
         &normals,
         lut,
     );
-    assert!((edge.weight(0) - 0.02 * cos).abs() < 1e-6, "{}", edge.weight(0));
+    assert!(
+        (edge.weight(0) - 0.02 * cos).abs() < 1e-6,
+        "{}",
+        edge.weight(0)
+    );
     // Wrong lengths: nothing.
     let mut short = VertexMemory::new(3);
     let c = short.observe(

@@ -228,7 +228,15 @@ pub fn run_scene_with<E: From<SceneError>>(
     keep_passes: bool,
     each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
-    run_scene_prepared(renderer, spec, settings, frames, keep_passes, |_, _, _| Ok(()), each)
+    run_scene_prepared(
+        renderer,
+        spec,
+        settings,
+        frames,
+        keep_passes,
+        |_, _, _| Ok(()),
+        each,
+    )
 }
 
 /// [`run_scene_with`], with `prepare` given the scene and the pipeline before the first frame

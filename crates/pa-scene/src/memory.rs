@@ -56,7 +56,10 @@ pub fn scan_orbit(scene: &Scene, key_time_s: f32, views: u32) -> Vec<Mat4> {
     let tris = scene.prop_triangles(key_time_s);
     let n = (tris.len() * 3).max(1) as f32;
     let centre = tris.iter().flatten().fold(Vec3::ZERO, |a, &p| a + p) / n;
-    let eye0 = scene.camera_from_marker(0).inverse().transform_point3(Vec3::ZERO);
+    let eye0 = scene
+        .camera_from_marker(0)
+        .inverse()
+        .transform_point3(Vec3::ZERO);
     let d = eye0 - centre;
     let radius = (d.x * d.x + d.y * d.y).sqrt();
     let start = d.y.atan2(d.x);
@@ -98,10 +101,7 @@ pub fn prime_with_scan(
     views: u32,
 ) -> Result<usize, SceneError> {
     let mut used = 0;
-    for (k, camera_from_marker) in scan_orbit(scene, key_time_s, views)
-        .into_iter()
-        .enumerate()
-    {
+    for (k, camera_from_marker) in scan_orbit(scene, key_time_s, views).into_iter().enumerate() {
         let f = scene.render_view(renderer, camera_from_marker, Some(key_time_s))?;
         pipeline.reset_tracker();
         if pipeline.remember(&f.rgba8, f.width, f.height, key_time_s, k as f64)? {

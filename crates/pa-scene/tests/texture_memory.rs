@@ -80,14 +80,21 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
         ..SceneSpec::default()
     };
     let scene = Scene::new(spec, &mut renderer).expect("scene");
-    let truth = scene.frame(&mut renderer, FRAME).expect("frame").ground_truth;
+    let truth = scene
+        .frame(&mut renderer, FRAME)
+        .expect("frame")
+        .ground_truth;
     let mut gains = Vec::new();
     for path in [RenderPath::Gpu, RenderPath::Cpu] {
         let off = run(&mut renderer, &scene, path, false);
         let on = run(&mut renderer, &scene, path, true);
         // The fallback pixels of the twin that are also the in-between's in the truth.
         let truth_mask = scene
-            .prop_mask(&mut renderer, scene.camera_from_marker(FRAME), scene.time_s(FRAME))
+            .prop_mask(
+                &mut renderer,
+                scene.camera_from_marker(FRAME),
+                scene.time_s(FRAME),
+            )
             .expect("mask");
         let fallback: Vec<bool> = on
             .live_codes

@@ -112,6 +112,10 @@ impl TextureMemory {
     }
 }
 
+/// What the texture memory holds at one moment ([`ArPipeline::memory_snapshot`]).
+#[derive(Debug, Clone, Default)]
+pub struct MemorySnapshot(TextureMemory);
+
 /// One frame as the memory sees it.
 pub(super) struct MemoryView<'a> {
     pub(super) rgba8: &'a [u8],
@@ -141,6 +145,18 @@ impl ArPipeline {
     /// Frames that updated the texture memory since it was last forgotten.
     pub fn memory_frames(&self) -> u64 {
         self.memory.frames
+    }
+
+    /// What the texture memory holds now: `run` keeps the scan's memory and gives it back
+    /// before each still ([`ArPipeline::restore_memory`]), so that a frame depends only on its
+    /// still, the shot and the scan (a resumed take is identical to an uninterrupted one).
+    pub fn memory_snapshot(&self) -> MemorySnapshot {
+        MemorySnapshot(self.memory.clone())
+    }
+
+    /// Puts back what [`ArPipeline::memory_snapshot`] took (on or off as it was then).
+    pub fn restore_memory(&mut self, snapshot: &MemorySnapshot) {
+        self.memory.clone_from(&snapshot.0);
     }
 
     /// Forgets what the texture memory holds (it stays on or off).

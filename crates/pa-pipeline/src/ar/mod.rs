@@ -36,6 +36,7 @@ use crate::twin::GpuTwin;
 pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
+pub use memory::MemorySnapshot;
 pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};

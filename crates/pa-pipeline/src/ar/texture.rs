@@ -119,7 +119,14 @@ impl ArPipeline {
         let memory_on = self.memory_active();
         let t = Instant::now();
         if memory_on {
-            self.observe_on_cpu(rgba8, width, height, &camera_model, camera_from_marker, times)?;
+            self.observe_on_cpu(
+                rgba8,
+                width,
+                height,
+                &camera_model,
+                camera_from_marker,
+                times,
+            )?;
         }
         let memory_ms = ms(t);
         let t = Instant::now();

@@ -75,6 +75,7 @@ use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 use pa_video::{Fps, Mp4Writer};
 
 pub mod diminish;
+mod scan;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -120,6 +121,11 @@ pub struct Args {
     /// How the real prop is removed (overriding the shot's `[diminish]`).
     #[command(flatten)]
     pub diminish: diminish::DiminishArgs,
+    /// A scan pass before the take (over the shot's `[scan] input`): a folder of stills or a
+    /// video circling the key prop once. Its frames are tracked and remembered (texture
+    /// memory: the twin's unseen parts take the remembered colours), no frames are written.
+    #[arg(long, value_name = "FOLDER|VIDEO")]
+    pub scan: Option<PathBuf>,
 }
 
 // --- input ---------------------------------------------------------------------------------
@@ -175,6 +181,8 @@ struct Config {
     plate_file: Option<PathBuf>,
     /// The first stills that are plate (passed through untouched).
     plate_frames: usize,
+    /// The scan pass's input (`--scan` or the shot's `[scan]`).
+    scan: Option<PathBuf>,
 }
 
 fn resolve(args: &Args) -> Result<(Config, InputSource)> {
@@ -256,6 +264,11 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         .with_context(|| format!("loading the model {}", model_path.display()))?;
     let animation = shot.check_model(&args.shot, &model)?;
     let key = &shot.key_poses[shot.present_key_index()];
+    let scan = scan::scan_input(args.scan.as_deref(), &shot, &args.shot)?;
+    let scan_identity = match &scan {
+        Some(s) => Some(format!("\n# scan: {}\n{}", s.display(), scan::identity(s)?)),
+        None => None,
+    };
     let cfg = Config {
         unit,
         input_desc,
@@ -271,17 +284,22 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         key_time_s: key.frame as f32 / shot.fps,
         // Flags that change the diminish stage change the take's settings too (the shot's
         // own [diminish] is in its text); without them the hash is the shot's as before.
-        shot_hash: if args.diminish.overrides().is_empty() {
-            hash_hex(&shot_text)
-        } else {
+        // The scan too (scan.rs): a changed scan re-renders the take.
+        shot_hash: {
             let mut text = shot_text.clone();
-            text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
+            if !args.diminish.overrides().is_empty() {
+                text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
+            }
+            if let Some(s) = &scan_identity {
+                text.extend_from_slice(s.as_bytes());
+            }
             hash_hex(&text)
         },
         passes,
         plate_file: diminish::plate_file(&dim, first_still.as_deref())?,
         plate_frames: diminish::plate_frames(&dim),
         diminish: dim,
+        scan,
     };
     Ok((cfg, source))
 }
@@ -321,6 +339,8 @@ struct PipelineProcessor<'a> {
     cfg: &'a Config,
     keep_passes: bool,
     started: Option<(Renderer, Tracker, ArPipeline)>,
+    /// The texture memory the scan left, given back before every still (scan.rs).
+    memory: Option<pa_pipeline::ar::MemorySnapshot>,
 }
 
 impl FrameProcessor for PipelineProcessor<'_> {
@@ -378,6 +398,13 @@ impl FrameProcessor for PipelineProcessor<'_> {
             };
             diminish::apply(&mut pipeline, &cfg.diminish, plate)?;
             pipeline.set_keep_passes(self.keep_passes);
+            let mut tracker = tracker;
+            if let Some(s) = &cfg.scan {
+                pipeline.set_texture_memory(true);
+                let size = (cfg.width, cfg.height);
+                scan::run_scan(s, &mut tracker, &mut pipeline, size, cfg.key_time_s)?;
+                self.memory = Some(pipeline.memory_snapshot());
+            }
             self.started = Some((renderer, tracker, pipeline));
         }
         let Some((renderer, tracker, pipeline)) = self.started.as_mut() else {
@@ -385,6 +412,9 @@ impl FrameProcessor for PipelineProcessor<'_> {
         };
         let t0 = Instant::now();
         tracker.reset();
+        if let Some(m) = &self.memory {
+            pipeline.restore_memory(m);
+        }
         // Every still on its own: the shadows' light is estimated again from each.
         if pipeline.shadows() {
             pipeline.set_shadow_light(None);
@@ -743,6 +773,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg: &cfg,
             keep_passes: cfg.passes.any(),
             started: None,
+            memory: None,
         };
         let result = run_take(
             &mut take,
