@@ -6,6 +6,7 @@
 use glam::{Mat4, Vec3};
 use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_render::Renderer;
+use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use pa_pipeline::ar::ArFrame;
 
@@ -91,8 +92,9 @@ pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> Mat4 {
 }
 
 /// The scan pass on the generated scene: renders the orbit's views with the key prop in its
-/// key pose, tracks each (as a still) and feeds it to the memory. Returns the views used
-/// (tracked). The tracker is reset after the scan, as before a take.
+/// key pose, tracks each as a still (a tracker of its own, as `run` tracks stills: one
+/// sighting, no filter, no search region) and feeds it to the memory with that pose.
+/// Returns the views used (tracked). The pipeline's own tracker is reset after the scan.
 pub fn prime_with_scan(
     scene: &Scene,
     renderer: &mut Renderer,
@@ -100,11 +102,29 @@ pub fn prime_with_scan(
     key_time_s: f32,
     views: u32,
 ) -> Result<usize, SceneError> {
+    let mut tracker = Tracker::new(
+        pa_camera::CameraModel::pinhole(scene.intrinsics),
+        TrackTarget::Board(scene.board.clone()),
+        DetectorConfig::default(),
+        TrackerConfig {
+            frames_to_track: 1,
+            use_roi: false,
+            filter: pa_track::PoseFilterConfig {
+                enabled: false,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+    )?;
     let mut used = 0;
-    for (k, camera_from_marker) in scan_orbit(scene, key_time_s, views).into_iter().enumerate() {
+    for camera_from_marker in scan_orbit(scene, key_time_s, views) {
         let f = scene.render_view(renderer, camera_from_marker, Some(key_time_s))?;
-        pipeline.reset_tracker();
-        if pipeline.remember(&f.rgba8, f.width, f.height, key_time_s, k as f64)? {
+        tracker.reset();
+        let gray = pa_pipeline::ar::gray_from_rgba(&f.rgba8, f.width, f.height)?;
+        let Some(pose) = tracker.update(&gray, 0.0)?.pose else {
+            continue;
+        };
+        if pipeline.remember_with_pose(&f.rgba8, f.width, f.height, key_time_s, pose.to_mat4())? {
             used += 1;
         }
     }

@@ -80,6 +80,25 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
         ..SceneSpec::default()
     };
     let scene = Scene::new(spec, &mut renderer).expect("scene");
+    // The eval's scan pass tracks the orbit's views (the board is seen all around), at the
+    // eval's size (the tags are too small to decode at 192x108).
+    {
+        let big = SceneSpec {
+            seed: 3,
+            width: 480,
+            height: 270,
+            frames: 1,
+            ..SceneSpec::default()
+        };
+        let big = Scene::new(big, &mut renderer).expect("scene");
+        let mut p = pipeline_for(&big, &mut renderer, ArSettings::ours()).expect("pipeline");
+        p.set_texture_memory(true);
+        let used =
+            pa_scene::memory::prime_with_scan(&big, &mut renderer, &mut p, 0.0, 24).expect("scan");
+        println!("scan: {used} of 24 views tracked");
+        assert!(used >= 20, "{used} of 24 scan views tracked");
+        assert_eq!(p.memory_frames(), used as u64);
+    }
     let truth = scene
         .frame(&mut renderer, FRAME)
         .expect("frame")
