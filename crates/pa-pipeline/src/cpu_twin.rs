@@ -113,6 +113,7 @@ impl CpuTwin {
                 mesh: self.posed_mesh(model, p, pose),
                 key_positions_world: &key.positions_world,
                 key_normals_world: &key.normals_world,
+                memory: &[],
             })
             .collect()
     }

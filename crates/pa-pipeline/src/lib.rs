@@ -17,6 +17,7 @@ pub mod shot;
 pub mod shot_config;
 pub mod shot_diminish;
 pub mod shot_hide;
+pub mod shot_scan;
 pub mod twin;
 
 pub use twin::{GpuTwin, TwinFrame};

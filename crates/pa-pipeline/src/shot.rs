@@ -329,6 +329,9 @@ pub struct Shot {
     /// How the real prop is removed ([`crate::shot_diminish`]).
     #[serde(default, skip_serializing_if = "ShotDiminish::is_empty")]
     pub diminish: ShotDiminish,
+    /// The scan pass before a take ([`crate::shot_scan`]).
+    #[serde(default, skip_serializing_if = "crate::shot_scan::ShotScan::is_empty")]
+    pub scan: crate::shot_scan::ShotScan,
 }
 
 fn format_one() -> u32 {

@@ -69,6 +69,9 @@ pub struct CpuLiveMesh<'a> {
     /// [`Shading::Albedo`]).
     pub key_positions_world: &'a [Vec3],
     pub key_normals_world: &'a [Vec3],
+    /// Texture memory, one [`crate::memory::VertexMemory::premultiplied`] entry per vertex
+    /// (empty: none): a fallback pixel takes the remembered colour first.
+    pub memory: &'a [[f32; 4]],
 }
 
 /// How the twin's pixels are coloured.
@@ -156,6 +159,8 @@ struct Vertex {
     key_camera: Vec3,
     key_normal_camera: Vec3,
     uv: [f32; 2],
+    /// Texture memory (premultiplied linear RGB, confidence); zero without.
+    memory: [f32; 4],
 }
 
 /// Per-triangle data beside its set-up.
@@ -316,6 +321,7 @@ impl CpuRenderer {
                     key_camera: camera_from_world.transform_point3(kp),
                     key_normal_camera: rotation * kn,
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
+                    memory: m.memory.get(i).copied().unwrap_or([0.0; 4]),
                 }
             };
             self.vertices
@@ -505,7 +511,11 @@ impl ShadeContext<'_> {
                         let r = params.fallback_irradiance[c];
                         (r[0] + r[1] * n.x + r[2] * n.y + r[3] * n.z).max(0.02)
                     });
-                    (code, std::array::from_fn(|c| a[c] * e[c]), a[3])
+                    let lit = std::array::from_fn(|c| a[c] * e[c]);
+                    let memory: [f32; 4] = std::array::from_fn(|c| {
+                        va.memory[c] * b0 + vb.memory[c] * b1 + vc.memory[c] * b2
+                    });
+                    (code, crate::memory::remembered_or(memory, lit), a[3])
                 }
             }
         };

@@ -190,6 +190,11 @@ pub struct LiveTexturing<'a> {
     /// Largest ratio of the animated to the key-pose facing cosine for a live sample
     /// ([`LiveSample::Stretched`]); 0 disables the test (the default).
     pub max_stretch: f32,
+    /// Texture memory: per vertex of the draw's mesh, a remembered linear colour times its
+    /// confidence, and the confidence (`pa_raster::memory::VertexMemory::premultiplied`).
+    /// A fragment without a valid live sample takes `memory.rgb + (1 - memory.a) *
+    /// fallback`. Empty (the default): the fallback alone.
+    pub memory: &'a [[f32; 4]],
 }
 
 impl<'a> LiveTexturing<'a> {
@@ -216,6 +221,7 @@ impl<'a> LiveTexturing<'a> {
             depth_tolerance_m: Self::DEFAULT_DEPTH_TOLERANCE_M,
             min_facing_cos: Self::DEFAULT_MIN_FACING_COS,
             max_stretch: 0.0,
+            memory: &[],
         }
     }
 
@@ -239,6 +245,12 @@ impl<'a> LiveTexturing<'a> {
     /// Sets a constant fallback gain (linear RGB; the same for every normal).
     pub fn with_fallback_gain(mut self, fallback_gain_rgb: [f32; 3]) -> Self {
         self.fallback_irradiance = fallback_gain_rgb.map(|g| [g, 0.0, 0.0, 0.0]);
+        self
+    }
+
+    /// Sets the texture memory ([`LiveTexturing::memory`]).
+    pub fn with_memory(mut self, memory: &'a [[f32; 4]]) -> Self {
+        self.memory = memory;
         self
     }
 

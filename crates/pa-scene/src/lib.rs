@@ -15,6 +15,7 @@ mod error;
 pub mod eval;
 pub mod flicker;
 pub mod hide;
+pub mod memory;
 pub mod methods;
 pub mod prop;
 pub mod scene;

@@ -42,6 +42,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
         "| Blender: blender_bust | ours, patch fill |",
         "| Blender: blender_bust | ours: live + visibility, ray fill |",
         "| Blender: blender_bust | ours with clean plate |",
+        "| Blender: blender_bust | ours: + texture memory |",
     ] {
         let line = report
             .lines()
@@ -64,9 +65,10 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x 4 fills (rectangle, rays, plate, patch).
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(16));
+    // 4 frames x 5 methods (rectangle, rays, plate, patch, rays with texture memory).
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(20));
     assert!(out.join("blender_bust/plate/0006.png").is_file());
+    assert!(out.join("blender_bust/memory/0006.png").is_file());
 }
 
 #[test]

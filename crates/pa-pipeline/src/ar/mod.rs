@@ -16,6 +16,7 @@ mod config;
 mod fill;
 mod frame;
 mod hide;
+mod memory;
 mod shadows;
 #[cfg(test)]
 mod tests;
@@ -37,6 +38,7 @@ pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
 pub use hide::{BoardSheet, Hide, SHEET_MARGIN_M};
+pub use memory::MemorySnapshot;
 pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};
@@ -100,6 +102,8 @@ pub struct ArPipeline {
     patch_prior: Option<fill::PatchState>,
     /// What replaces the board sheet, if anything ([`Hide`]).
     hide: Option<hide::HideState>,
+    /// The key props' remembered appearance ([`memory`]); kept by `reset_tracker`.
+    memory: memory::TextureMemory,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -171,6 +175,7 @@ impl ArPipeline {
             shadows: shadows::ShadowState::default(),
             patch_prior: None,
             hide: None,
+            memory: memory::TextureMemory::default(),
         })
     }
 

@@ -19,11 +19,24 @@ use crate::twin::TwinFrame;
 /// What the CPU path keeps between frames.
 pub(super) struct CpuState {
     /// One per prop, in [`ArPipeline::props`] order.
-    twins: Vec<CpuTwin>,
+    pub(super) twins: Vec<CpuTwin>,
     /// Key-pose depth (visibility map) and the animated twin.
     pub(super) renderer: pa_raster::CpuRenderer,
     /// The key pose's unlit colour (the colour gain of the paper's baseline).
     key_colour: pa_raster::CpuRenderer,
+}
+
+impl CpuState {
+    pub(super) fn new(props: &[super::Prop]) -> Result<Self, ArError> {
+        Ok(Self {
+            twins: props
+                .iter()
+                .map(|p| CpuTwin::new(&p.model))
+                .collect::<Result<_, _>>()?,
+            renderer: pa_raster::CpuRenderer::new(),
+            key_colour: pa_raster::CpuRenderer::new(),
+        })
+    }
 }
 
 /// The texture stage's results, whichever renderer made them (full-frame buffers).
@@ -83,8 +96,8 @@ const VISIBLE_MIN_FACING_COS: f32 = -0.3;
 const MAX_STRETCH: f32 = 2.0;
 
 /// Clip planes of the AR camera.
-const NEAR_M: f32 = 0.01;
-const FAR_M: f32 = 50.0;
+pub(super) const NEAR_M: f32 = 0.01;
+pub(super) const FAR_M: f32 = 50.0;
 impl ArPipeline {
     /// The texture stage on wgpu ([`RenderPath::Gpu`](super::RenderPath::Gpu)).
     pub(super) fn texture_gpu(
@@ -102,6 +115,20 @@ impl ArPipeline {
             times,
         } = *view;
         let n = (width * height) as usize;
+        // Texture memory: updated on the CPU (see memory.rs), counted in the texture stage.
+        let memory_on = self.memory_active();
+        let t = Instant::now();
+        if memory_on {
+            self.observe_on_cpu(
+                rgba8,
+                width,
+                height,
+                &camera_model,
+                camera_from_marker,
+                times,
+            )?;
+        }
+        let memory_ms = ms(t);
         let t = Instant::now();
         let camera = CpuCamera {
             intrinsics: camera_model.intrinsics,
@@ -199,13 +226,15 @@ impl ArPipeline {
                     None
                 };
                 let mut draws: Vec<LiveDraw<'_>> = Vec::new();
-                for (p, (_, anim_frame, key_frame)) in props.iter().zip(&frames) {
+                let memory = memory_on.then_some(&self.memory.props);
+                for (pi, (p, (_, anim_frame, key_frame))) in props.iter().zip(&frames).enumerate() {
                     draws.extend(
                         p.twin
                             .draws(anim_frame)
                             .into_iter()
                             .zip(&p.twin.primitives)
-                            .map(|(d, tp)| {
+                            .enumerate()
+                            .map(|(k, (d, tp))| {
                                 let key_joints: &[Mat4] = if tp.mesh.is_skinned() {
                                     &key_frame.joint_matrices[tp.node]
                                 } else {
@@ -226,6 +255,10 @@ impl ArPipeline {
                                     live.min_facing_cos = VISIBLE_MIN_FACING_COS;
                                     live.max_stretch = MAX_STRETCH;
                                 }
+                                let mem = memory.and_then(|m| m.get(pi)?.attributes.get(k));
+                                if let Some(a) = mem {
+                                    live = live.with_memory(a);
+                                }
                                 d.with_live(live)
                             }),
                     );
@@ -237,7 +270,7 @@ impl ArPipeline {
                 (r.frame.rgba8, r.frame.depth_m, counts, r.live_valid)
             }
         };
-        timings.texture_ms = ms(t);
+        timings.texture_ms = ms(t) + memory_ms;
         let twin_mask: Vec<bool> = twin_depth.iter().map(|d| d.is_finite()).collect();
         let key_mask: Vec<bool> = key_depth_m.iter().map(|d| d.is_finite()).collect();
         Ok(Textured {
@@ -270,17 +303,11 @@ impl ArPipeline {
         } = *view;
         let n = (width * height) as usize;
         let t = Instant::now();
+        let memory_on = self.memory_active();
         let props = &self.props;
         let cpu = match &mut self.cpu {
             Some(c) => c,
-            None => self.cpu.insert(Box::new(CpuState {
-                twins: props
-                    .iter()
-                    .map(|p| CpuTwin::new(&p.model))
-                    .collect::<Result<_, _>>()?,
-                renderer: pa_raster::CpuRenderer::new(),
-                key_colour: pa_raster::CpuRenderer::new(),
-            })),
+            None => self.cpu.insert(Box::new(CpuState::new(props)?)),
         };
         // Every prop posed at both times (props in parallel; each poses its two in parallel).
         cpu.twins
@@ -328,6 +355,18 @@ impl ArPipeline {
             }
         };
         let (key_mask, key_bbox) = key_vis;
+        if memory_on {
+            let view = super::memory::MemoryView {
+                rgba8,
+                width,
+                height,
+                camera: &camera_model,
+                camera_from_marker,
+                key_pose_s: times.key_pose_s,
+            };
+            let placements: Vec<Mat4> = props.iter().map(|p| p.marker_from_prop).collect();
+            self.memory.observe(cpu, &placements, &view)?;
+        }
         let shading = match self.settings.texturing {
             Texturing::ModelTexture => pa_raster::Shading::Albedo,
             Texturing::Live { visibility } => {
@@ -360,11 +399,16 @@ impl ArPipeline {
                 pa_raster::Shading::Live { frame, params }
             }
         };
-        let meshes: Vec<_> = twins
+        let mut meshes: Vec<_> = twins
             .iter()
             .zip(props)
             .flat_map(|(tw, p)| tw.live_meshes(&p.model))
             .collect();
+        if memory_on {
+            for (m, a) in meshes.iter_mut().zip(self.memory.attributes()) {
+                m.memory = a;
+            }
+        }
         let image = cpu
             .renderer
             .render_twin(&camera, camera_from_marker, &meshes, &shading);

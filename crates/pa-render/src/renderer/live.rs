@@ -39,6 +39,19 @@ impl Renderer {
             }
         }
         self.validate_deformation(i, d.mesh, l.key_joint_matrices, l.key_morph_weights)?;
+        if !l.memory.is_empty() && l.memory.len() != d.mesh.vertex_count() {
+            return Err(RenderError::AttributeLength {
+                attribute: format!("draw #{i}: live texture memory"),
+                expected: d.mesh.vertex_count(),
+                actual: l.memory.len(),
+            });
+        }
+        if !l.memory.iter().flatten().all(|x| x.is_finite()) {
+            return Err(RenderError::NonFiniteDrawInput {
+                draw: i,
+                what: "live texture memory",
+            });
+        }
         let finite_checks: [(&'static str, bool); 5] = [
             ("key_world_from_mesh", finite_mat(&l.key_world_from_mesh)),
             (
@@ -165,6 +178,19 @@ impl Renderer {
                 (&l.frame.view, visibility_view)
             }
         };
+        // Texture memory (one zero entry when the draw has none: a binding is never empty).
+        let memory: &[[f32; 4]] = match live {
+            Some(l) if !l.memory.is_empty() => {
+                u.flags[2] = 1;
+                l.memory
+            }
+            _ => &[[0.0; 4]],
+        };
+        let memory_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pa-render live memory"),
+            contents: bytemuck::cast_slice(memory),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("pa-render live uniforms"),
             contents: bytemuck::bytes_of(&u),
@@ -189,6 +215,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 3,
                     resource: wgpu::BindingResource::TextureView(visibility_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: memory_buffer.as_entire_binding(),
                 },
             ],
         }))

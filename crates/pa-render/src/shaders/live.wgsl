@@ -33,7 +33,7 @@ struct LiveUniforms {
     stretch: vec4<f32>,
     // x: key joint base, y: key joint count, z: key morph base, w: key morph count.
     key_counts: vec4<u32>,
-    // x: 1 = live-textured draw, y: 1 = a visibility map is bound.
+    // x: 1 = live-textured draw, y: 1 = a visibility map is bound, z: 1 = texture memory.
     flags: vec4<u32>,
 }
 
@@ -42,6 +42,9 @@ struct LiveUniforms {
 @group(3) @binding(2) var frame_sampler: sampler;
 // Camera-space z (f32 bits, 0 = empty) of the key pose seen by the visibility camera.
 @group(3) @binding(3) var visibility_z: texture_2d<u32>;
+// Texture memory per vertex: remembered linear RGB times confidence, and the confidence
+// (pa_raster::memory; one zero entry when live.flags.z == 0).
+@group(3) @binding(4) var<storage, read> live_memory: array<vec4<f32>>;
 
 // Codes of the validity target (`LiveSample` on the Rust side).
 const LIVE_NONE: u32 = 0u;
@@ -64,6 +67,8 @@ struct LiveVsOut {
     // The animated surface's position and normal in the frame camera's coordinates.
     @location(5) anim_camera: vec3<f32>,
     @location(6) anim_normal_camera: vec3<f32>,
+    // Texture memory (premultiplied RGB, confidence), interpolated like any attribute.
+    @location(7) memory: vec4<f32>,
 }
 
 @vertex
@@ -80,6 +85,10 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
     out.key_normal_camera = vec3<f32>(0.0, 0.0, -1.0);
     out.anim_camera = vec3<f32>(0.0);
     out.anim_normal_camera = vec3<f32>(0.0, 0.0, -1.0);
+    out.memory = vec4<f32>(0.0);
+    if (live.flags.z == 1u && vid < arrayLength(&live_memory)) {
+        out.memory = live_memory[vid];
+    }
     if (live.flags.x == 1u) {
         let key = skin_vertex_pose(
             vid,
@@ -260,7 +269,9 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
                 dot(live.fallback_irradiance[1], sh),
                 dot(live.fallback_irradiance[2], sh),
             );
-            rgb = albedo.rgb * max(e, vec3<f32>(0.02));
+            // The remembered colour first, the lit fallback where the memory is unsure.
+            let lit = albedo.rgb * max(e, vec3<f32>(0.02));
+            rgb = in.memory.rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
         }
     } else if (draw.counts.w == 1u) {
         var n = normalize(in.normal_world);

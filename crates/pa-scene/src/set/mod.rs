@@ -155,9 +155,22 @@ pub fn run_set<E: From<SceneError>>(
     renderer: &mut Renderer,
     set: &SetManifest,
     settings: ArSettings,
+    each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
+    run_set_memory(renderer, set, settings, false, each)
+}
+
+/// [`run_set`] with the texture memory on or off (`crate::memory`): the set's key prop
+/// stands still through its frames, so each frame also remembers it for the next.
+pub fn run_set_memory<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    set: &SetManifest,
+    settings: ArSettings,
+    memory: bool,
     mut each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
     let mut pipeline = pipeline_for_set(set, renderer, settings)?;
+    pipeline.set_texture_memory(memory);
     let mut flicker = Flicker::new(set.intrinsics);
     if let Some(table_m) = set.table_m {
         flicker = flicker.with_plane_extent(f64::from(table_m) * 0.5);

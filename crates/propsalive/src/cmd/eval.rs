@@ -21,9 +21,10 @@ use pa_pipeline::ar::{ArSettings, Fill};
 use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
-use pa_scene::eval::{run_scene, run_scene_with};
-use pa_scene::methods::methods;
-use pa_scene::scene::Background;
+use pa_scene::eval::run_scene_with;
+use pa_scene::memory::{memory_methods, run_scene_memory};
+use pa_scene::methods::{methods, Method};
+use pa_scene::scene::{Background, CameraPath};
 use pa_scene::tracking::{tracking_errors, SensorNoise, TrackingErrors};
 use pa_scene::SceneSpec;
 
@@ -188,7 +189,17 @@ pub fn run(args: Args) -> Result<()> {
     let mut rows: Vec<MethodRow> = Vec::new();
     let mut curves: Vec<Curve> = Vec::new();
     for (bi, &background) in backgrounds.iter().enumerate() {
-        for m in methods() {
+        // The memory rows (pa_scene::memory) after the methods, with the same measures.
+        let memory_rows = memory_methods().into_iter().map(|mm| {
+            let m = Method {
+                name: mm.name,
+                settings: mm.settings,
+                key_frames: vec![0],
+                camera_path: CameraPath::Handheld,
+            };
+            (m, Some(mm.mode))
+        });
+        for (m, memory) in methods().into_iter().map(|m| (m, None)).chain(memory_rows) {
             let mut all = Vec::new();
             let mut seed_of = Vec::new();
             for &seed in &args.seeds {
@@ -203,10 +214,11 @@ pub fn run(args: Args) -> Result<()> {
                     ..SceneSpec::default()
                 };
                 errln!("{background:?} seed {seed}: {}", m.name);
-                let r = run_scene(
+                let r = run_scene_memory(
                     &mut renderer,
                     spec,
                     m.settings,
+                    memory,
                     frames.iter().copied(),
                     |_, _, _| anyhow::Ok(()),
                 )?;

@@ -13,7 +13,7 @@ use pa_report::stats::{mean, median};
 use pa_scene::eval::{run_scene, FrameMetrics};
 use pa_scene::scene::Background;
 use pa_scene::set::kit::{kit, KitModel, KitSpec};
-use pa_scene::set::{run_set, SetManifest};
+use pa_scene::set::{run_set_memory, SetManifest};
 use pa_scene::SceneSpec;
 
 use super::Args;
@@ -117,6 +117,8 @@ fn short(name: &str) -> &'static str {
         "patch"
     } else if name.contains("plate") {
         "plate"
+    } else if name.contains("memory") {
+        "memory"
     } else {
         "rays"
     }
@@ -200,13 +202,16 @@ pub fn run_sets(args: &Args) -> Result<()> {
             set.height,
             set.renderer
         );
-        for (method, settings) in fills() {
+        // The fills, then ours with the texture memory (pa_scene::memory).
+        let memory_row = ("ours: + texture memory", ArSettings::ours(), true);
+        let methods = fills().into_iter().map(|(m, s)| (m, s, false));
+        for (method, settings, memory) in methods.chain([memory_row]) {
             let frames_dir = args.out.join(&name).join(short(method));
             if args.set.save_frames {
                 std::fs::create_dir_all(&frames_dir)
                     .with_context(|| format!("creating {}", frames_dir.display()))?;
             }
-            let all = run_set(&mut renderer, &set, settings, |f, _, out, m| {
+            let all = run_set_memory(&mut renderer, &set, settings, memory, |f, _, out, m| {
                 errln!(
                     "  {} frame {}: rot {} deg, trans {} mm, key IoU {}, prop {} dB, revealed {} dB",
                     short(method),

@@ -76,6 +76,7 @@ use pa_video::{Fps, Mp4Writer};
 
 pub mod diminish;
 pub mod hide;
+mod scan;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -124,6 +125,11 @@ pub struct Args {
     /// What replaces the board (overriding the shot's `[marker] hide`).
     #[command(flatten)]
     pub hide: hide::HideArgs,
+    /// A scan pass before the take (over the shot's `[scan] input`): a folder of stills or a
+    /// video circling the key prop once. Its frames are tracked and remembered (texture
+    /// memory: the twin's unseen parts take the remembered colours), no frames are written.
+    #[arg(long, value_name = "FOLDER|VIDEO")]
+    pub scan: Option<PathBuf>,
 }
 
 // --- input ---------------------------------------------------------------------------------
@@ -181,6 +187,8 @@ struct Config {
     plate_frames: usize,
     /// The shot's `[marker] hide` with the flags over it.
     hide: pa_pipeline::shot_hide::HideConfig,
+    /// The scan pass's input (`--scan` or the shot's `[scan]`).
+    scan: Option<PathBuf>,
 }
 
 fn resolve(args: &Args) -> Result<(Config, InputSource)> {
@@ -263,6 +271,11 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         .with_context(|| format!("loading the model {}", model_path.display()))?;
     let animation = shot.check_model(&args.shot, &model)?;
     let key = &shot.key_poses[shot.present_key_index()];
+    let scan = scan::scan_input(args.scan.as_deref(), &shot, &args.shot)?;
+    let scan_identity = match &scan {
+        Some(s) => Some(format!("\n# scan: {}\n{}", s.display(), scan::identity(s)?)),
+        None => None,
+    };
     let cfg = Config {
         unit,
         input_desc,
@@ -278,15 +291,18 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         key_time_s: key.frame as f32 / shot.fps,
         // Flags that change the diminish stage change the take's settings too (the shot's
         // own [diminish] is in its text); without them the hash is the shot's as before.
-        shot_hash: if args.diminish.overrides().is_empty()
-            && args.hide.overrides() == Default::default()
-        {
-            hash_hex(&shot_text)
-        } else {
+        // The scan too (scan.rs): a changed scan re-renders the take.
+        shot_hash: {
             let mut text = shot_text.clone();
-            text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
-            if args.hide.overrides() != Default::default() {
+            let hide_flags = args.hide.overrides() != Default::default();
+            if !args.diminish.overrides().is_empty() || hide_flags {
+                text.extend_from_slice(format!("\n# flags: {}", dim.describe()).as_bytes());
+            }
+            if hide_flags {
                 text.extend_from_slice(format!(" {}", hide_cfg.describe()).as_bytes());
+            }
+            if let Some(s) = &scan_identity {
+                text.extend_from_slice(s.as_bytes());
             }
             hash_hex(&text)
         },
@@ -295,6 +311,7 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         plate_frames: diminish::plate_frames(&dim),
         diminish: dim,
         hide: hide_cfg,
+        scan,
     };
     Ok((cfg, source))
 }
@@ -334,6 +351,8 @@ struct PipelineProcessor<'a> {
     cfg: &'a Config,
     keep_passes: bool,
     started: Option<(Renderer, Tracker, ArPipeline)>,
+    /// The texture memory the scan left, given back before every still (scan.rs).
+    memory: Option<pa_pipeline::ar::MemorySnapshot>,
 }
 
 impl FrameProcessor for PipelineProcessor<'_> {
@@ -399,6 +418,13 @@ impl FrameProcessor for PipelineProcessor<'_> {
                 (cfg.width, cfg.height),
             )?;
             pipeline.set_keep_passes(self.keep_passes);
+            let mut tracker = tracker;
+            if let Some(s) = &cfg.scan {
+                pipeline.set_texture_memory(true);
+                let size = (cfg.width, cfg.height);
+                scan::run_scan(s, &mut tracker, &mut pipeline, size, cfg.key_time_s)?;
+                self.memory = Some(pipeline.memory_snapshot());
+            }
             self.started = Some((renderer, tracker, pipeline));
         }
         let Some((renderer, tracker, pipeline)) = self.started.as_mut() else {
@@ -406,6 +432,9 @@ impl FrameProcessor for PipelineProcessor<'_> {
         };
         let t0 = Instant::now();
         tracker.reset();
+        if let Some(m) = &self.memory {
+            pipeline.restore_memory(m);
+        }
         // Every still on its own: the shadows' light is estimated again from each.
         if pipeline.shadows() {
             pipeline.set_shadow_light(None);
@@ -764,6 +793,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg: &cfg,
             keep_passes: cfg.passes.any(),
             started: None,
+            memory: None,
         };
         let result = run_take(
             &mut take,

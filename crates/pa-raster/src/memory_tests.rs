@@ -1,0 +1,190 @@
+use super::*;
+use crate::live::FrameCamera;
+use crate::srgb::decode_lut;
+
+fn camera() -> LiveParams {
+    LiveParams::new(FrameCamera {
+        fx: 100.0,
+        fy: 100.0,
+        cx: 49.5,
+        cy: 49.5,
+        width: 100.0,
+        height: 100.0,
+        k1: 0.0,
+        k2: 0.0,
+        p1: 0.0,
+        p2: 0.0,
+        k3: 0.0,
+    })
+}
+
+/// A key-depth map at constant 1/z over the whole image (0: empty).
+struct Flat(f32);
+impl InvDepthMap for Flat {
+    fn size(&self) -> (u32, u32) {
+        (100, 100)
+    }
+    fn inv_z_clamped(&self, _: i32, _: i32) -> f32 {
+        self.0
+    }
+}
+
+#[test]
+fn weighted_mean_and_variance_are_exact() {
+    let mut m = VertexMemory::new(1);
+    // Weights 1, 3 on values 0.2, 0.6 (no outlier test before ESTABLISHED_WEIGHT... the
+    // second sample arrives at weight 1 < 2): mean 0.5, variance (1*0.09 + 3*0.01)/4 = 0.03.
+    assert!(!m.add_sample(0, [0.2; 3], 1.0));
+    assert!(!m.add_sample(0, [0.6; 3], 3.0));
+    let c = m.colour(0).unwrap();
+    assert!((c[0] - 0.5).abs() < 1e-6, "{c:?}");
+    assert!(
+        (m.variance(0)[1] - 0.03).abs() < 1e-6,
+        "{:?}",
+        m.variance(0)
+    );
+    assert_eq!(m.weight(0), 4.0);
+    assert_eq!(m.confidence(0), 1.0);
+    // Unseen and out of range.
+    let e = VertexMemory::new(2);
+    assert_eq!(e.colour(1), None);
+    assert_eq!(e.confidence(1), 0.0);
+    let mut e = e;
+    assert!(!e.add_sample(5, [1.0; 3], 1.0));
+    assert!(!e.add_sample(0, [f32::NAN, 0.0, 0.0], 1.0));
+    assert!(!e.add_sample(0, [1.0; 3], 0.0));
+    assert_eq!(e.colour(0), None);
+}
+
+#[test]
+fn a_hand_crossing_an_established_vertex_barely_moves_it() {
+    let mut m = VertexMemory::new(1);
+    for k in 0..10 {
+        // Grey with a little noise.
+        let v = 0.5 + if k % 2 == 0 { 0.01 } else { -0.01 };
+        m.add_sample(0, [v; 3], 1.0);
+    }
+    // Five frames of a skin-coloured hand in front of it, at full weight.
+    let mut outliers = 0;
+    for _ in 0..5 {
+        outliers += m.add_sample(0, [0.8, 0.45, 0.35], 1.0) as usize;
+    }
+    assert_eq!(outliers, 5);
+    let c = m.colour(0).unwrap();
+    // Without the test the mean would be 0.6 in red (5 of 15 samples at 0.8).
+    assert!((c[0] - 0.5).abs() < 0.01, "{c:?}");
+    // A change that is consistent (a new light) is followed once it is the majority: the
+    // cap makes old samples fade.
+    // Uncapped, 100 samples of 0.52 after a weight of 30 at 0.5 would give 0.5154.
+    let mut n = VertexMemory::new(1);
+    n.add_sample(0, [0.5; 3], MAX_WEIGHT);
+    for _ in 0..100 {
+        assert!(!n.add_sample(0, [0.52; 3], 1.0));
+    }
+    let c = n.colour(0).unwrap()[0];
+    assert!(c > 0.519 && c < 0.52 + 1e-6, "{c}");
+    assert!(n.weight(0) <= MAX_WEIGHT + 1e-3);
+}
+
+#[test]
+fn observe_samples_only_visible_front_facing_vertices_at_their_pixels() {
+    // A frame whose left half is dark (sRGB 50) and right half bright (sRGB 200).
+    let mut rgba = vec![0u8; 100 * 100 * 4];
+    for y in 0..100 {
+        for x in 0..100 {
+            let v = if x < 50 { 50 } else { 200 };
+            rgba[(y * 100 + x) * 4..][..4].copy_from_slice(&[v, v, v, 255]);
+        }
+    }
+    let frame = FrameSampler::new(100, 100, &rgba).unwrap();
+    let lut = decode_lut();
+    // Vertices at z = 1 m: left (pixel 19.5), right (79.5), one facing away, one outside.
+    let toward = Vec3::new(0.0, 0.0, -1.0);
+    let positions = [
+        Vec3::new(-0.3, 0.0, 1.0),
+        Vec3::new(0.3, 0.0, 1.0),
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(3.0, 0.0, 1.0),
+    ];
+    let normals = [toward, toward, -toward, toward];
+    let mut params = camera();
+    params.visibility = true;
+    let mut m = VertexMemory::new(4);
+    let counts = m.observe(
+        &params,
+        &Flat(1.0),
+        &frame,
+        Mat4::IDENTITY,
+        &positions,
+        &normals,
+        lut,
+    );
+    assert_eq!(counts.sampled, 2);
+    assert!((m.colour(0).unwrap()[0] - lut[50]).abs() < 1e-6);
+    assert!((m.colour(1).unwrap()[0] - lut[200]).abs() < 1e-6);
+    assert_eq!(m.colour(2), None);
+    assert_eq!(m.colour(3), None);
+    // At z = 1 m with fx = 100 px: 0.1 px/mm; the ray's cosine 1/sqrt(1.09); a full margin.
+    let cos = 1.0 / 1.09f32.sqrt();
+    assert!((m.weight(0) - 0.1 * cos).abs() < 1e-6, "{}", m.weight(0));
+    // Hidden behind a nearer key-pose surface (at 0.5 m): no sample.
+    let mut hidden = VertexMemory::new(4);
+    let c = hidden.observe(
+        &params,
+        &Flat(2.0),
+        &frame,
+        Mat4::IDENTITY,
+        &positions,
+        &normals,
+        lut,
+    );
+    assert_eq!(c.sampled, 0);
+    // At a silhouette (no surface around it in the map) the weight drops to a fifth.
+    let mut edge = VertexMemory::new(4);
+    params.visibility = true;
+    edge.observe(
+        &params,
+        &Flat(0.0),
+        &frame,
+        Mat4::IDENTITY,
+        &positions,
+        &normals,
+        lut,
+    );
+    assert!(
+        (edge.weight(0) - 0.02 * cos).abs() < 1e-6,
+        "{}",
+        edge.weight(0)
+    );
+    // Wrong lengths: nothing.
+    let mut short = VertexMemory::new(3);
+    let c = short.observe(
+        &params,
+        &Flat(1.0),
+        &frame,
+        Mat4::IDENTITY,
+        &positions,
+        &normals,
+        lut,
+    );
+    assert_eq!(c, ObserveCounts::default());
+}
+
+#[test]
+fn the_attribute_blends_memory_into_the_fallback() {
+    let mut m = VertexMemory::new(2);
+    m.add_sample(0, [0.8, 0.4, 0.2], FULL_WEIGHT * 0.5);
+    let mut attr = Vec::new();
+    m.premultiplied(&mut attr);
+    assert_eq!(attr.len(), 2);
+    assert_eq!(attr[1], [0.0; 4]);
+    let lit = [0.1, 0.1, 0.1];
+    // Unseen: the lit fallback; half confident: halfway; interpolated attributes too.
+    assert_eq!(remembered_or(attr[1], lit), lit);
+    let half = remembered_or(attr[0], lit);
+    assert!((half[0] - 0.45).abs() < 1e-6 && (half[2] - 0.15).abs() < 1e-6);
+    m.add_sample(0, [0.8, 0.4, 0.2], FULL_WEIGHT);
+    m.premultiplied(&mut attr);
+    let full = remembered_or(attr[0], lit);
+    assert!((full[0] - 0.8).abs() < 1e-6, "{full:?}");
+}
