@@ -38,6 +38,9 @@ pub struct BenchRow {
     pub held_mb: f64,
     /// Wall time of the configuration, seconds.
     pub seconds: f64,
+    /// 1-minute load average at the start and the end of the configuration.
+    pub load_start: Option<f64>,
+    pub load_end: Option<f64>,
 }
 
 /// The stages timed, in table order.
@@ -55,6 +58,11 @@ fn cell(s: Stat) -> String {
     format!("{:.1} / {:.1}", s.median, s.p95)
 }
 
+/// A load average, or `n/a`.
+fn load(l: Option<f64>) -> String {
+    l.map_or_else(|| "n/a".to_string(), |l| format!("{l:.2}"))
+}
+
 /// Frames per second at the median time `s` (ms).
 pub fn fps(s: Stat) -> f64 {
     1000.0 / s.median
@@ -69,11 +77,11 @@ pub fn table(rows: &[BenchRow]) -> String {
     let mut t = String::new();
     let _ = writeln!(
         t,
-        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |"
+        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked | load start / end |"
     );
     let _ = writeln!(
         t,
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for r in rows {
         let _ = write!(
@@ -86,7 +94,7 @@ pub fn table(rows: &[BenchRow]) -> String {
         }
         let _ = writeln!(
             t,
-            " {} | {:.1} | {} | {} | {}/{} |",
+            " {} | {:.1} | {} | {} | {}/{} | {} / {} |",
             cell(r.end_to_end),
             fps(r.end_to_end),
             r.psnr_prop
@@ -96,7 +104,9 @@ pub fn table(rows: &[BenchRow]) -> String {
                 .map(|m| format!("{m:.0}"))
                 .unwrap_or_else(|| "n/a".into()),
             r.tracked,
-            r.frames
+            r.frames,
+            load(r.load_start),
+            load(r.load_end)
         );
     }
     t
@@ -127,9 +137,9 @@ pub struct BenchReport {
 }
 
 const PROPS_MEANING: &str = "N props = one ArPipeline drawing N props a frame (add_prop): track, \
-                             fill and composite once, pose and draw per prop; copies of the bust at \
-                             the same place (worst-case overdraw; the output and PSNR are the \
-                             single prop's)";
+                             fill and composite once, pose and draw per prop; N copies of the bust \
+                             at distinct spots on the set (the board's centre, beside it, rows \
+                             behind it), all N in the input, the ground truth and the prop PSNR";
 const READBACK_MEANING: &str = "readback = mapping GPU results and copying them to CPU memory \
                                 (unpad, depth decode), taken out of texture; texture includes \
                                 waiting for the GPU (gpu_wait), which on a software rasteriser is \
@@ -138,7 +148,6 @@ const READBACK_MEANING: &str = "readback = mapping GPU results and copying them 
 impl BenchReport {
     /// The report printed (Markdown): the machine and settings, then the table.
     pub fn markdown(&self) -> String {
-        let load = |l: Option<f64>| l.map_or_else(|| "n/a".to_string(), |l| format!("{l:.2}"));
         let (adapter, backend, cpu, cores) = (&self.adapter, &self.backend, &self.cpu, self.cores);
         let (props_meaning, readback_meaning) = (PROPS_MEANING, READBACK_MEANING);
         let mut out = String::new();
@@ -148,7 +157,8 @@ impl BenchReport {
         let _ = writeln!(
             out,
             "- CPU: {cpu}, {cores} cores available; 1-minute load average {} at the start, {} at \
-         the end (other work on the machine slows a software rasteriser a lot)",
+         the end (other work on the machine slows a software rasteriser a lot; each \
+         configuration's own in the table)",
             load(self.load_start),
             load(self.load_end)
         );
@@ -206,6 +216,8 @@ impl BenchReport {
                     "peak_rss_scope": r.peak_scope,
                     "held_frames_mib": r.held_mb,
                     "seconds": r.seconds,
+                    "load_average_start": r.load_start,
+                    "load_average_end": r.load_end,
                 })
             })
             .collect();

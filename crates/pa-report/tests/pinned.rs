@@ -259,6 +259,8 @@ fn bench_row(render_path: &'static str, props: u32, base: f64) -> BenchRow {
         peak_scope: "timed loop",
         held_mb: 1.5,
         seconds: 2.25,
+        load_start: Some(base),
+        load_end: if props == 1 { Some(0.75) } else { None },
     }
 }
 
@@ -284,10 +286,10 @@ fn bench_report() -> BenchReport {
 fn bench_table() {
     assert_eq!(
         table(&bench_report().rows),
-        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n\
-         | gpu | 160x120 | 2048 | 1 | 2.0 / 3.0 | 3.0 / 4.5 | 4.0 / 6.0 | 5.0 / 7.5 | 6.0 / 9.0 | 7.0 / 10.5 | 20.0 / 30.0 | 50.0 | 31.26 | 123 | 2/3 |\n\
-         | cpu | 160x120 | 2048 | 4 | 1.2 / 1.9 | 2.2 / 3.4 | 3.2 / 4.9 | 4.2 / 6.4 | 5.2 / 7.9 | 6.2 / 9.4 | 12.5 / 18.8 | 80.0 | - | n/a | 2/3 |\n"
+        "| path | size | vertices | props | track | animate | texture | diminish | composite | readback | end-to-end | fps | prop PSNR dB | peak RSS MiB | tracked | load start / end |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n\
+         | gpu | 160x120 | 2048 | 1 | 2.0 / 3.0 | 3.0 / 4.5 | 4.0 / 6.0 | 5.0 / 7.5 | 6.0 / 9.0 | 7.0 / 10.5 | 20.0 / 30.0 | 50.0 | 31.26 | 123 | 2/3 | 2.00 / 0.75 |\n\
+         | cpu | 160x120 | 2048 | 4 | 1.2 / 1.9 | 2.2 / 3.4 | 3.2 / 4.9 | 4.2 / 6.4 | 5.2 / 7.9 | 6.2 / 9.4 | 12.5 / 18.8 | 80.0 | - | n/a | 2/3 | 1.25 / n/a |\n"
     );
 }
 

@@ -28,6 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         width: w,
         height: h,
         frames: 8,
+        props: props as u32,
         ..SceneSpec::default()
     };
     let scene = Scene::new(spec, &mut renderer)?;
@@ -35,16 +36,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|i| scene.frame(&mut renderer, i))
         .collect::<Result<_, _>>()
         .map_err(|e| e.to_string())?;
+    // One pipeline prop per copy on the set (PROP_SPOTS), as in `propsalive bench`.
     let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours())?;
-    for _ in 1..props {
-        p.add_prop(
-            &mut renderer,
-            scene.model.clone(),
-            0,
-            pa_scene::scene::marker_from_prop(),
-        )
-        .map_err(|e| e.to_string())?;
-    }
     p.set_render_path(path);
     let mut t: Vec<[f64; 6]> = Vec::new();
     for k in 0..repeats {

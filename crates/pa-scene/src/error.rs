@@ -34,6 +34,9 @@ pub enum SceneError {
     /// The clean plate's image.
     #[error("{0}")]
     Diminish(pa_diminish::DiminishError),
+    /// [`crate::SceneSpec::props`] is 0 or more than there are spots for.
+    #[error("a scene holds 1 to {max} props, not {props}")]
+    PropCount { props: u32, max: usize },
     /// A scene variant name that does not exist (`--scene`).
     #[error("unknown scene variant \"{name}\" (known: {known})")]
     UnknownVariant { name: String, known: String },

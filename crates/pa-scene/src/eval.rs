@@ -174,7 +174,8 @@ pub fn measure_revealed(
     Ok((m, revealed, region))
 }
 
-/// Builds the frame pipeline for a scene: the real tracker on the scene's board.
+/// Builds the frame pipeline for a scene: the real tracker on the scene's board, one prop of
+/// the pipeline per copy of the prop on the set ([`crate::SceneSpec::props`]).
 pub fn pipeline_for(
     scene: &Scene,
     renderer: &mut Renderer,
@@ -196,6 +197,10 @@ pub fn pipeline_for(
         Some(tracker),
         settings,
     )?;
+    // Every further copy of the prop on the set is a prop of the pipeline, at its spot.
+    for m in scene.marker_from_props().into_iter().skip(1) {
+        p.add_prop(renderer, scene.model.clone(), 0, m)?;
+    }
     let (plate, plate_pose) = scene.clean_plate(renderer)?;
     let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
     p.set_clean_plate(plate, plate_pose);

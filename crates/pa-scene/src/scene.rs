@@ -77,6 +77,10 @@ pub struct SceneSpec {
     /// What the ground truth shows where the board's sheet is (the board by default; the
     /// truth of the pipeline's hiding of it, [`crate::hide`]).
     pub truth_sheet: TruthSheet,
+    /// Copies of the prop on the set (1..=[`PROP_SPOTS`]`.len()`), each at its own spot
+    /// ([`PROP_SPOTS`], the first at the placement); the input, the ground truth and the
+    /// prop masks show all of them, the clean plate none.
+    pub props: u32,
 }
 
 impl Default for SceneSpec {
@@ -95,9 +99,35 @@ impl Default for SceneSpec {
             supersample: 2,
             set: SetOptions::default(),
             truth_sheet: TruthSheet::Board,
+            props: 1,
         }
     }
 }
+
+/// Where the copies of the prop stand (marker plane, metres, added to the placement's
+/// offset): the first at the board's centre, two beside the board's left and right columns
+/// of tags, then three rows behind the board (5, 6 and 2 props, 0.1 m apart: the pedestals,
+/// 0.048 m in radius, do not touch). None stands in front of the board or on a tag, so the
+/// tags stay in view; on the default handheld path every spot's bounding box (0.1 m wide,
+/// 0.2 m tall) stays at least 17 px inside a 1280x720 frame in every frame.
+pub const PROP_SPOTS: [[f32; 2]; 16] = [
+    [0.0, 0.0],
+    [-0.19, 0.0],
+    [0.17, 0.0],
+    [-0.2, -0.17],
+    [-0.1, -0.17],
+    [0.0, -0.17],
+    [0.1, -0.17],
+    [0.2, -0.17],
+    [-0.25, -0.27],
+    [-0.15, -0.27],
+    [-0.05, -0.27],
+    [0.05, -0.27],
+    [0.15, -0.27],
+    [0.25, -0.27],
+    [-0.05, -0.37],
+    [0.05, -0.37],
+];
 
 /// The board of the set: eight 45 mm tag36h11 tags (ids 0..8) in a ring around the prop.
 pub fn set_board() -> Board {
@@ -330,6 +360,12 @@ impl Scene {
         if spec.key_frames.is_empty() {
             return Err(SceneError::NoKeyPose);
         }
+        if !(1..=PROP_SPOTS.len()).contains(&(spec.props as usize)) {
+            return Err(SceneError::PropCount {
+                props: spec.props,
+                max: PROP_SPOTS.len(),
+            });
+        }
         let model = prop_model(&spec.prop)?;
         let intrinsics =
             Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)?;
@@ -394,13 +430,34 @@ impl Scene {
         }
     }
 
-    /// The posed prop's triangles in the marker frame at animation time `time_s` (the shadow
-    /// casters).
+    /// Every copy's placement ([`SceneSpec::props`] of them): [`Scene::marker_from_prop`]
+    /// moved to its spot of [`PROP_SPOTS`] (the first is [`Scene::marker_from_prop`] itself).
+    pub fn marker_from_props(&self) -> Vec<Mat4> {
+        let first = self.marker_from_prop();
+        PROP_SPOTS
+            .iter()
+            .take(self.spec.props as usize)
+            .map(|&[x, y]| {
+                if x == 0.0 && y == 0.0 {
+                    first
+                } else {
+                    Mat4::from_translation(Vec3::new(x, y, 0.0)) * first
+                }
+            })
+            .collect()
+    }
+
+    /// The posed props' triangles in the marker frame at animation time `time_s` (the shadow
+    /// casters; every copy).
     pub fn prop_triangles(&self, time_s: f32) -> Vec<[Vec3; 3]> {
         let pose = anim::sample(&self.model, 0, time_s);
-        let marker_from_prop = self.marker_from_prop();
         let mut tris = Vec::new();
-        for posed in pa_model::skin::pose_meshes(&self.model, &pose) {
+        let posed_meshes = pa_model::skin::pose_meshes(&self.model, &pose);
+        for (marker_from_prop, posed) in self
+            .marker_from_props()
+            .into_iter()
+            .flat_map(|m| posed_meshes.iter().map(move |p| (m, p)))
+        {
             let prim = &self.model.meshes[posed.mesh].primitives[posed.primitive];
             let p: Vec<Vec3> = posed
                 .positions
@@ -468,11 +525,18 @@ impl Scene {
             sheet.texture = Some(texture);
             draws.push(sheet);
         }
-        let frame;
-        if let Some(t) = prop_time_s {
-            let pose = anim::sample(&self.model, 0, t);
-            frame = self.twin.frame(&self.model, &pose, self.marker_from_prop());
-            draws.extend(self.twin.draws(&frame));
+        let frames: Vec<_> = match prop_time_s {
+            Some(t) => {
+                let pose = anim::sample(&self.model, 0, t);
+                self.marker_from_props()
+                    .into_iter()
+                    .map(|m| self.twin.frame(&self.model, &pose, m))
+                    .collect()
+            }
+            None => Vec::new(),
+        };
+        for frame in &frames {
+            draws.extend(self.twin.draws(frame));
         }
         let lighting = set_lighting();
         let mut full = renderer.render(
@@ -560,7 +624,8 @@ impl Scene {
         Ok((self.render(renderer, view, None)?, view))
     }
 
-    /// Pixels covered by the prop alone at `prop_time_s`, seen from `camera_from_marker`.
+    /// Pixels covered by the props alone (every copy) at `prop_time_s`, seen from
+    /// `camera_from_marker`.
     pub fn prop_mask(
         &self,
         renderer: &mut Renderer,
@@ -574,11 +639,16 @@ impl Scene {
             far_m: FAR_M,
         };
         let pose = anim::sample(&self.model, 0, prop_time_s);
-        let frame = self.twin.frame(&self.model, &pose, self.marker_from_prop());
+        let frames: Vec<_> = self
+            .marker_from_props()
+            .into_iter()
+            .map(|m| self.twin.frame(&self.model, &pose, m))
+            .collect();
+        let draws: Vec<Draw> = frames.iter().flat_map(|f| self.twin.draws(f)).collect();
         let r = renderer.render(
             &camera,
             None,
-            &self.twin.draws(&frame),
+            &draws,
             [0.0; 4],
             self.spec.width,
             self.spec.height,
