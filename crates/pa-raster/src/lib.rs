@@ -10,6 +10,8 @@
 //!
 //! - [`raster`]: triangle set-up and the visibility buffer (conventions table there).
 //! - [`live`]: the per-fragment live-texturing look-up (codes as `pa_render::LiveSample`).
+//! - [`look`]: how a live sample becomes the twin's colour: relighting at the animated
+//!   normal and the feathered seam weight.
 //! - [`texture`]: mip-mapped base-colour textures and the camera-frame sampler, in linear light.
 //! - [`renderer`]: [`CpuRenderer`], long-lived buffers and the per-frame passes.
 //! - [`mesh`]: closed, outward meshes, whose back faces can be culled without changing the
@@ -21,6 +23,7 @@
 
 pub mod error;
 pub mod live;
+pub mod look;
 pub mod mesh;
 pub mod raster;
 pub mod renderer;
