@@ -369,11 +369,11 @@ mod tests {
         assert!(w(&p, &map, limit, toward, limit, toward).2 < 1e-3);
         let past = Vec3::new(0.0, 0.0, 1.0061);
         assert_eq!(w(&p, &map, past, toward, past, toward).0, code::OCCLUDED);
-        // Stretch: key cosine 0.4 (limit 0.8 for the animated cosine), ramp 0.2 wide; the
+        // Stretch: key cosine 0.4 (limit 0.8 for the animated cosine), ramp 0.4 wide; the
         // key-pose facing ramp is 1 there.
         let key = tilted(0.4);
-        assert_eq!(w(&p, &map, at, key, at, tilted(0.5)).2, 1.0);
-        let ws = w(&p, &map, at, key, at, tilted(0.7)).2;
+        assert_eq!(w(&p, &map, at, key, at, tilted(0.35)).2, 1.0);
+        let ws = w(&p, &map, at, key, at, tilted(0.6)).2;
         assert!((ws - 0.5).abs() < 0.01, "{ws}");
         assert!(w(&p, &map, at, key, at, tilted(0.7999)).2 < 1e-3);
         assert_eq!(w(&p, &map, at, key, at, tilted(0.81)).0, code::STRETCHED);

@@ -89,7 +89,7 @@
 //! Both are off by default and are the CPU path's `pa_raster::look` (the math and constants
 //! are documented there; `live.wgsl` mirrors them). With [`LiveTexturing::relight`] a valid
 //! live sample `c` is shaded at the animated normal: `c E(n_anim) / E(n_key)` per channel
-//! (clamped to [0.25, 2]), `E` the fallback irradiance, both normals in the world frame. With
+//! (clamped to [0.7, 2]), `E` the fallback irradiance, both normals in the world frame. With
 //! [`LiveTexturing::feather`] a valid sample's weight `w` goes smoothly to 0 towards the frame
 //! edge, the back-facing limit, the stretch limit and the occlusion limit, and the fragment
 //! takes `w live + (1 - w) fallback`. The code stays [`LiveSample::Valid`] wherever `w > 0`

@@ -44,8 +44,11 @@ fn looks() -> [(&'static str, LiveLook); 4] {
     ]
 }
 
+/// Mean of the finite values (as `eval`'s `pa_report::stats::mean`).
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    let (s, n) = v
+        .filter(|x| x.is_finite())
+        .fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     if n == 0 {
         f64::NAN
     } else {
@@ -86,20 +89,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sets: Vec<&String> = args.iter().skip(1).collect();
     let mut renderer = Renderer::new().map_err(|e| e.to_string())?;
     eprintln!("renderer: {}", renderer.adapter_info());
-    let frames: Vec<u32> = (0..3).chain((3..49).step_by(2)).collect();
+    // `RELIGHT_EVAL_FRAMES=0,14,27` and `RELIGHT_EVAL_SEEDS=5` narrow the run (quick looks).
+    let list = |var: &str| -> Option<Vec<u64>> {
+        let v = std::env::var(var).ok()?;
+        v.split(',').map(|x| x.trim().parse().ok()).collect()
+    };
+    let frames: Vec<u32> = match list("RELIGHT_EVAL_FRAMES") {
+        Some(f) => f.into_iter().map(|x| x as u32).collect(),
+        None => (0..3).chain((3..49).step_by(2)).collect(),
+    };
+    let seeds = list("RELIGHT_EVAL_SEEDS").unwrap_or(vec![1, 2]);
     let strip_frames = [31u32, 35, 39, 43];
     // (frame, look index) -> crop
     let mut strips: Vec<(u32, usize, Vec<u8>, u32, u32)> = Vec::new();
     let mut truths: Vec<(u32, Vec<u8>, u32, u32)> = Vec::new();
     println!("| look | prop PSNR dB | 0-5 | 5-15 | 15-25 | 25-35 | 35-50 | 25-50 deg | texture ms (median) |");
     println!("|---|---|---|---|---|---|---|---|---|");
+    // `RELIGHT_EVAL_LOOKS=0,3` runs only those looks (indices into the four).
+    let only = list("RELIGHT_EVAL_LOOKS");
     for (li, (name, look)) in looks().into_iter().enumerate() {
+        if only.as_ref().is_some_and(|o| !o.contains(&(li as u64))) {
+            continue;
+        }
         let settings = ArSettings {
             look,
             ..ArSettings::ours()
         };
         let mut all = Vec::new();
-        for seed in [1u64, 2] {
+        for &seed in &seeds {
             let spec = SceneSpec {
                 seed,
                 width: 480,
@@ -114,7 +131,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 frames.iter().copied(),
                 false,
                 |f, out, _, _| {
-                    if seed == 1 && strip_frames.contains(&f.index) {
+                    if seed == seeds[0] && strip_frames.contains(&f.index) {
                         let (w, h) = (f.input.width, f.input.height);
                         if let Some(b) = bbox_of(&out.twin_mask, w) {
                             let (cw, ch, c) = crop(&out.rgba8, w, h, b, 4);

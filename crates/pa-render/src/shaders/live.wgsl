@@ -154,9 +154,9 @@ struct LiveLookup {
 // Feathered seams (pa_raster::look's constants).
 const EDGE_FEATHER_PX: f32 = 6.0;
 const FACING_FEATHER_COS: f32 = 0.25;
-const STRETCH_FEATHER: f32 = 0.25;
+const STRETCH_FEATHER: f32 = 0.5;
 // Relighting ratio clamp and irradiance floor.
-const RELIGHT_MIN: f32 = 0.25;
+const RELIGHT_MIN: f32 = 0.7;
 const RELIGHT_MAX: f32 = 2.0;
 const MIN_IRRADIANCE: f32 = 0.02;
 
