@@ -11,6 +11,8 @@
 //! - [`raster`]: triangle set-up and the visibility buffer (conventions table there).
 //! - [`live`]: the per-fragment live-texturing look-up (codes as `pa_render::LiveSample`).
 //! - [`memory`]: texture memory, the key prop's remembered colour per key-pose vertex.
+//! - [`look`]: how a live sample becomes the twin's colour: relighting at the animated
+//!   normal and the feathered seam weight.
 //! - [`texture`]: mip-mapped base-colour textures and the camera-frame sampler, in linear light.
 //! - [`renderer`]: [`CpuRenderer`], long-lived buffers and the per-frame passes.
 //! - [`mesh`]: closed, outward meshes, whose back faces can be culled without changing the
@@ -23,6 +25,7 @@
 pub mod error;
 pub mod live;
 pub mod memory;
+pub mod look;
 pub mod mesh;
 pub mod raster;
 pub mod renderer;

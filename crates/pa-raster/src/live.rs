@@ -85,6 +85,12 @@ pub struct LiveParams {
     pub max_stretch: f32,
     /// Per linear RGB channel, `(constant, n.x, n.y, n.z)` of the world-space normal.
     pub fallback_irradiance: [[f32; 4]; 3],
+    /// Shade live samples at the animated normal ([`crate::look::relight_factor`] with
+    /// `fallback_irradiance`; normals in the world frame the irradiance is fitted in).
+    pub relight: bool,
+    /// Blend live and fallback colour with a continuous weight ([`crate::look`]) instead of
+    /// a hard seam.
+    pub feather: bool,
 }
 
 impl LiveParams {
@@ -99,6 +105,8 @@ impl LiveParams {
             min_facing_cos: 0.05,
             max_stretch: 0.0,
             fallback_irradiance: [[1.0, 0.0, 0.0, 0.0]; 3],
+            relight: false,
+            feather: false,
         }
     }
 }
@@ -146,15 +154,31 @@ pub fn live_lookup(
     pa: Vec3,
     na: Vec3,
 ) -> (u8, [f32; 2]) {
+    let (code, pixel, _) = live_lookup_weighted(p, key_depth, pc, nc, pa, na);
+    (code, pixel)
+}
+
+/// [`live_lookup`] and the live sample's weight: 0 unless [`code::VALID`]; with
+/// `p.feather`, the product of the ramps of [`crate::look`] (1 without).
+#[inline]
+pub fn live_lookup_weighted(
+    p: &LiveParams,
+    key_depth: &impl InvDepthMap,
+    pc: Vec3,
+    nc: Vec3,
+    pa: Vec3,
+    na: Vec3,
+) -> (u8, [f32; 2], f32) {
+    use crate::look::{ramp, EDGE_FEATHER_PX, FACING_FEATHER_COS, STRETCH_FEATHER};
     let cam = &p.frame_camera;
     // (Written so that NaN fails every test.)
     let in_front = pc.z > 1e-6;
     if !in_front {
-        return (code::OUTSIDE, [0.0; 2]);
+        return (code::OUTSIDE, [0.0; 2], 0.0);
     }
     let (x, y) = (pc.x / pc.z, pc.y / pc.z);
     if !cam.radial_monotonic(x * x + y * y) {
-        return (code::OUTSIDE, [0.0; 2]);
+        return (code::OUTSIDE, [0.0; 2], 0.0);
     }
     let (xd, yd) = cam.distort(x, y);
     let pixel = [cam.fx * xd + cam.cx, cam.fy * yd + cam.cy];
@@ -163,22 +187,37 @@ pub fn live_lookup(
         && pixel[0] <= cam.width - 0.5
         && pixel[1] <= cam.height - 0.5)
     {
-        return (code::OUTSIDE, pixel);
+        return (code::OUTSIDE, pixel, 0.0);
     }
     let cos_key = facing_cos(pc, nc);
     let facing = cos_key > p.min_facing_cos;
     if !facing {
-        return (code::BACK_FACING, pixel);
+        return (code::BACK_FACING, pixel, 0.0);
     }
-    if p.max_stretch > 0.0 && facing_cos(pa, na) > p.max_stretch * cos_key.max(0.0) {
-        return (code::STRETCHED, pixel);
+    let mut weight = 1.0f32;
+    if p.feather {
+        let edge = (pixel[0] + 0.5)
+            .min(pixel[1] + 0.5)
+            .min(cam.width - 0.5 - pixel[0])
+            .min(cam.height - 0.5 - pixel[1]);
+        weight = ramp(edge, EDGE_FEATHER_PX) * ramp(cos_key - p.min_facing_cos, FACING_FEATHER_COS);
+    }
+    if p.max_stretch > 0.0 {
+        let limit = p.max_stretch * cos_key.max(0.0);
+        let cos_anim = facing_cos(pa, na);
+        if cos_anim > limit {
+            return (code::STRETCHED, pixel, 0.0);
+        }
+        if p.feather {
+            weight *= ramp(limit - cos_anim, STRETCH_FEATHER * limit);
+        }
     }
     if p.visibility {
         // Pinhole projection into the map (rasterised without distortion).
         let q = [cam.fx * x + cam.cx, cam.fy * y + cam.cy];
         let (mw, mh) = key_depth.size();
         if !(q[0] >= -0.5 && q[1] >= -0.5 && q[0] <= mw as f32 - 0.5 && q[1] <= mh as f32 - 0.5) {
-            return (code::OUTSIDE, pixel);
+            return (code::OUTSIDE, pixel, 0.0);
         }
         let (x0, y0) = (
             crate::texture::floor_i64(q[0]) as i32,
@@ -192,11 +231,15 @@ pub fn live_lookup(
                 inv_z = v;
             }
         }
-        if pc.z * inv_z > 1.0 + p.depth_tolerance_rel + p.depth_tolerance_m * inv_z {
-            return (code::OCCLUDED, pixel);
+        let tolerance = p.depth_tolerance_rel + p.depth_tolerance_m * inv_z;
+        if pc.z * inv_z > 1.0 + tolerance {
+            return (code::OCCLUDED, pixel, 0.0);
+        }
+        if p.feather && inv_z > 0.0 {
+            weight *= ramp(1.0 + tolerance - pc.z * inv_z, tolerance);
         }
     }
-    (code::VALID, pixel)
+    (code::VALID, pixel, weight)
 }
 
 #[cfg(test)]
@@ -276,6 +319,64 @@ mod tests {
             live_lookup(&ps, &map, at, grazing, at, toward).0,
             code::STRETCHED
         );
+    }
+
+    /// The feathered weight: 1 well inside every test, 0 where a test fails, and continuous
+    /// across each limit (the last valid sample's weight is near 0).
+    #[test]
+    fn feather_weight_goes_to_zero_at_each_limit() {
+        let mut p = params();
+        p.visibility = true;
+        p.max_stretch = 2.0;
+        p.min_facing_cos = -0.3;
+        let toward = Vec3::NEG_Z;
+        let at = Vec3::new(0.0, 0.0, 1.0);
+        let map = Flat(1.0);
+        let w = |p: &LiveParams, map: &Flat, pc: Vec3, nc: Vec3, pa: Vec3, na: Vec3| {
+            live_lookup_weighted(p, map, pc, nc, pa, na)
+        };
+        // Hard seams: weight 1 wherever valid.
+        assert_eq!(
+            w(&p, &map, at, toward, at, toward),
+            (code::VALID, [49.5, 49.5], 1.0)
+        );
+        p.feather = true;
+        assert_eq!(w(&p, &map, at, toward, at, toward).2, 1.0);
+        // Facing: a key normal tilted to a cosine just above the limit.
+        let tilted = |c: f32| Vec3::new((1.0 - c * c).sqrt(), 0.0, -c);
+        // (An animated normal facing away: never stretched.)
+        let away = Vec3::Z;
+        let (c0, _, w0) = w(&p, &map, at, tilted(-0.299), at, away);
+        assert_eq!(c0, code::VALID);
+        assert!(w0 < 1e-3, "{w0}");
+        assert_eq!(
+            w(&p, &map, at, tilted(-0.301), at, away).0,
+            code::BACK_FACING
+        );
+        let mid = w(&p, &map, at, tilted(-0.175), at, away).2;
+        assert!((mid - 0.5).abs() < 0.01, "{mid}");
+        // Frame edge: 100 px wide image, the point 3 px from the right border (half the ramp).
+        let edge = Vec3::new((96.5 - 49.5) / 100.0, 0.0, 1.0);
+        let (c, px, we) = w(&p, &map, edge, toward, edge, toward);
+        assert_eq!(c, code::VALID);
+        assert!((px[0] - 96.5).abs() < 1e-4);
+        assert!((we - 0.5).abs() < 0.01, "{we}");
+        // Depth: tolerance 0.5 % + 1 mm at 1 m = 0.006; half-way to the occlusion limit.
+        let behind = Vec3::new(0.0, 0.0, 1.003);
+        let wd = w(&p, &map, behind, toward, behind, toward).2;
+        assert!((wd - 0.5).abs() < 0.01, "{wd}");
+        let limit = Vec3::new(0.0, 0.0, 1.00599);
+        assert!(w(&p, &map, limit, toward, limit, toward).2 < 1e-3);
+        let past = Vec3::new(0.0, 0.0, 1.0061);
+        assert_eq!(w(&p, &map, past, toward, past, toward).0, code::OCCLUDED);
+        // Stretch: key cosine 0.4 (limit 0.8 for the animated cosine), ramp 0.4 wide; the
+        // key-pose facing ramp is 1 there.
+        let key = tilted(0.4);
+        assert_eq!(w(&p, &map, at, key, at, tilted(0.35)).2, 1.0);
+        let ws = w(&p, &map, at, key, at, tilted(0.6)).2;
+        assert!((ws - 0.5).abs() < 0.01, "{ws}");
+        assert!(w(&p, &map, at, key, at, tilted(0.7999)).2 < 1e-3);
+        assert_eq!(w(&p, &map, at, key, at, tilted(0.81)).0, code::STRETCHED);
     }
 
     #[test]

@@ -18,7 +18,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use glam::{Mat3, Mat4, Vec3};
 use rayon::prelude::*;
 
-use crate::live::{code, live_lookup, LiveParams};
+use crate::live::{code, live_lookup_weighted, LiveParams};
+use crate::look;
 use crate::raster::{PixelRect, RasterCamera, TriSetup, VisBuffer, NO_TRIANGLE};
 use crate::srgb::{decode_lut, Encoder};
 use crate::texture::{CpuMipTexture, FrameSampler};
@@ -158,6 +159,8 @@ struct Vertex {
     anim_normal_world: Vec3,
     key_camera: Vec3,
     key_normal_camera: Vec3,
+    /// The key-pose normal in the world (the relighting's frame).
+    key_normal_world: Vec3,
     uv: [f32; 2],
     /// Texture memory (premultiplied linear RGB, confidence); zero without.
     memory: [f32; 4],
@@ -320,6 +323,7 @@ impl CpuRenderer {
                     anim_normal_world: nw,
                     key_camera: camera_from_world.transform_point3(kp),
                     key_normal_camera: rotation * kn,
+                    key_normal_world: kn,
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     memory: m.memory.get(i).copied().unwrap_or([0.0; 4]),
                 }
@@ -488,7 +492,7 @@ impl ShadeContext<'_> {
                 (code::NONE, [a[0], a[1], a[2]], a[3])
             }
             Shading::Live { frame, params } => {
-                let (code, pixel) = live_lookup(
+                let (code, pixel, weight) = live_lookup_weighted(
                     params,
                     self.key,
                     lerp3(|v| v.key_camera),
@@ -496,26 +500,42 @@ impl ShadeContext<'_> {
                     lerp3(|v| v.anim_camera),
                     lerp3(|v| v.anim_normal_camera),
                 );
-                if code == code::VALID {
-                    // The albedo only for its alpha (the GPU writes albedo.a everywhere).
-                    let a = if opaque { 1.0 } else { albedo()[3] };
-                    (code, frame.sample_linear(pixel[0], pixel[1], self.lut), a)
-                } else {
-                    // Without vertex normals n is zero and the fallback is the constant term.
-                    let mut n = lerp3(|v| v.anim_normal_world).normalize_or_zero();
+                // Without vertex normals n is zero and the irradiance is its constant term.
+                let normal = || {
+                    let n = lerp3(|v| v.anim_normal_world).normalize_or_zero();
                     if s.ccw_on_screen == mesh.mirrored {
-                        n = -n;
+                        -n
+                    } else {
+                        n
                     }
-                    let a = albedo();
-                    let e: [f32; 3] = std::array::from_fn(|c| {
-                        let r = params.fallback_irradiance[c];
-                        (r[0] + r[1] * n.x + r[2] * n.y + r[3] * n.z).max(0.02)
-                    });
+                };
+                // The remembered colour first, the lit model texture where the memory is unsure.
+                let fallback = |a: &[f32; 4]| -> [f32; 3] {
+                    let e = look::irradiance(&params.fallback_irradiance, normal());
                     let lit = std::array::from_fn(|c| a[c] * e[c]);
                     let memory: [f32; 4] = std::array::from_fn(|c| {
                         va.memory[c] * b0 + vb.memory[c] * b1 + vc.memory[c] * b2
                     });
-                    (code, crate::memory::remembered_or(memory, lit), a[3])
+                    crate::memory::remembered_or(memory, lit)
+                };
+                if code == code::VALID {
+                    let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
+                    if params.relight {
+                        let nk = lerp3(|v| v.key_normal_world).normalize_or_zero();
+                        let f = look::relight_factor(&params.fallback_irradiance, nk, normal());
+                        rgb = std::array::from_fn(|c| rgb[c] * f[c]);
+                    }
+                    if weight < 1.0 {
+                        let a = albedo();
+                        (code, look::blend(rgb, fallback(&a), weight), a[3])
+                    } else {
+                        // The albedo only for its alpha (the GPU writes albedo.a everywhere).
+                        let a = if opaque { 1.0 } else { albedo()[3] };
+                        (code, rgb, a)
+                    }
+                } else {
+                    let a = albedo();
+                    (code, fallback(&a), a[3])
                 }
             }
         };

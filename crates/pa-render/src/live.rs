@@ -84,6 +84,17 @@
 //! ([`LiveTexturing::fallback_irradiance`]; a constant gain is `r_c = (g_c, 0, 0, 0)`). So a
 //! surface hidden in the key pose is shaded as the set lights it in the in-between pose.
 //!
+//! # Relighting and feathered seams
+//!
+//! Both are off by default and are the CPU path's `pa_raster::look` (the math and constants
+//! are documented there; `live.wgsl` mirrors them). With [`LiveTexturing::relight`] a valid
+//! live sample `c` is shaded at the animated normal: `c E(n_anim) / E(n_key)` per channel
+//! (clamped to [0.7, 2]), `E` the fallback irradiance, both normals in the world frame. With
+//! [`LiveTexturing::feather`] a valid sample's weight `w` goes smoothly to 0 towards the frame
+//! edge, the back-facing limit, the stretch limit and the occlusion limit, and the fragment
+//! takes `w live + (1 - w) fallback`. The code stays [`LiveSample::Valid`] wherever `w > 0`
+//! is possible, so the codes are unchanged.
+//!
 //! The per-pixel code of the nearest surface is read back in
 //! [`LiveRenderedFrame::live_valid`] (0 where no live-textured draw is visible).
 //!
@@ -195,6 +206,11 @@ pub struct LiveTexturing<'a> {
     /// A fragment without a valid live sample takes `memory.rgb + (1 - memory.a) *
     /// fallback`. Empty (the default): the fallback alone.
     pub memory: &'a [[f32; 4]],
+    /// Shade live samples at the animated normal: times `E(n_anim) / E(n_key)` of
+    /// `fallback_irradiance` (see the module docs, "Relighting and feathered seams").
+    pub relight: bool,
+    /// Blend live and fallback colour with a continuous weight instead of a hard seam.
+    pub feather: bool,
 }
 
 impl<'a> LiveTexturing<'a> {
@@ -222,6 +238,8 @@ impl<'a> LiveTexturing<'a> {
             min_facing_cos: Self::DEFAULT_MIN_FACING_COS,
             max_stretch: 0.0,
             memory: &[],
+            relight: false,
+            feather: false,
         }
     }
 

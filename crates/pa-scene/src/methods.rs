@@ -1,11 +1,12 @@
 //! The methods `propsalive eval` compares on the generated scenes: the paper's pipeline, each
 //! of our changes alone, ours in full, ours with a clean plate, the patch fill (alone and with
 //! the clean plate), the model's own texture, two
-//! key poses, and the paper and ours on a tripod camera. The report's tables and curves are
+//! key poses, the paper and ours on a tripod camera, and ours relit, with feathered seams,
+//! and both. The report's tables and curves are
 //! keyed by [`Method::name`] (curves are drawn for the methods named `ours:...`,
 //! `ours, two...` and `paper...`).
 
-use pa_pipeline::ar::{ArSettings, Fill, Texturing};
+use pa_pipeline::ar::{ArSettings, Fill, LiveLook, Texturing};
 
 use crate::scene::CameraPath;
 
@@ -109,6 +110,41 @@ pub fn methods() -> Vec<Method> {
             key_frames: vec![0],
             camera_path: CameraPath::Static,
         },
+        // How a live sample becomes the twin's colour (issue 13): relit at the in-between's
+        // normal, feathered seams, both.
+        Method {
+            name: "ours: relit",
+            settings: ArSettings {
+                look: LiveLook {
+                    relight: true,
+                    feather: false,
+                },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours: feathered seams",
+            settings: ArSettings {
+                look: LiveLook {
+                    relight: false,
+                    feather: true,
+                },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours: relit + feathered seams",
+            settings: ArSettings {
+                look: LiveLook::RELIT_FEATHERED,
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
     ]
 }
 
@@ -134,6 +170,9 @@ mod tests {
                 "ours, two key poses (frames 0 and 24)",
                 "tripod camera: paper",
                 "tripod camera: ours",
+                "ours: relit",
+                "ours: feathered seams",
+                "ours: relit + feathered seams",
             ]
         );
         let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
@@ -148,5 +187,10 @@ mod tests {
         assert!(matches!(m[5].settings.fill, Fill::Patch { plate: false }));
         assert!(matches!(m[6].settings.fill, Fill::Patch { plate: true }));
         assert!(matches!(m[7].settings.texturing, Texturing::ModelTexture));
+        let looks: Vec<_> = m.iter().map(|m| m.settings.look).collect();
+        assert!(looks[..11].iter().all(|l| *l == LiveLook::PLAIN));
+        assert!(looks[11].relight && !looks[11].feather);
+        assert!(!looks[12].relight && looks[12].feather);
+        assert_eq!(looks[13], LiveLook::RELIT_FEATHERED);
     }
 }

@@ -2,8 +2,9 @@
 //! (`pa-render`), as kornia tests its Rust ports against the reference C library.
 //!
 //! On a generated scene (320x180, seed 5, true camera pose, key prop of frame 0) the whole
-//! frame pipeline runs twice per frame, once per [`RenderPath`], for the three texturings
-//! (ours: live + visibility; the paper's: live, no visibility; the model's texture). Stated
+//! frame pipeline runs twice per frame, once per [`RenderPath`], for the four texturings
+//! (ours: live + visibility; ours relit with feathered seams; the paper's: live, no
+//! visibility; the model's texture). Stated
 //! tolerances, all measured with margin (numbers in the assertion messages):
 //!
 //! - twin silhouettes: the masks disagree on at most 0.2 % of the twin's pixels (only pixel
@@ -15,9 +16,12 @@
 //!   takes it per 2x2 pixels; 99.96-100 % for live texturing), mean absolute difference
 //!   under 0.1/255 over the frame (measured at most 0.023);
 //! - quality against the ground truth: prop-region PSNR of the two paths within 0.1 dB
-//!   (measured at most 0.06 dB apart).
+//!   (measured at most 0.06 dB apart); relit with feathered seams within 0.2 dB (measured
+//!   0.14 dB at frame 14, 0.06 elsewhere: the same few pixels whose code flips between the
+//!   paths, 0.06 % of them, weigh more against a twin that is 4 dB closer to the truth; the
+//!   colour bounds above hold unchanged).
 
-use pa_pipeline::ar::{ArFrame, ArSettings, RenderPath, Texturing};
+use pa_pipeline::ar::{ArFrame, ArSettings, LiveLook, RenderPath, Texturing};
 use pa_pipeline::metrics::psnr_region;
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
@@ -86,6 +90,13 @@ fn cpu_path_matches_the_gpu_path() {
         ("ours", ArSettings::ours()),
         ("paper", ArSettings::paper()),
         (
+            "ours, relit + feathered",
+            ArSettings {
+                look: LiveLook::RELIT_FEATHERED,
+                ..ArSettings::ours()
+            },
+        ),
+        (
             "model texture",
             ArSettings {
                 texturing: Texturing::ModelTexture,
@@ -94,6 +105,7 @@ fn cpu_path_matches_the_gpu_path() {
         ),
     ];
     for (name, s) in settings {
+        let psnr_bound = if s.look == LiveLook::PLAIN { 0.1 } else { 0.2 };
         let mut gpu = pipeline_for(&scene, &mut renderer, s).expect("pipeline");
         gpu.set_render_path(RenderPath::Gpu);
         let mut cpu = pipeline_for(&scene, &mut renderer, s).expect("pipeline");
@@ -133,7 +145,7 @@ fn cpu_path_matches_the_gpu_path() {
             assert!(d.code_agree >= 0.995, "{msg}");
             assert!(d.within_2 >= 0.995, "{msg}");
             assert!(d.mean_abs < 0.1, "{msg}");
-            assert!((pa - pb).abs() < 0.1, "{msg}");
+            assert!((pa - pb).abs() < psnr_bound, "{msg}");
         }
     }
 }

@@ -1,5 +1,5 @@
 //! Golden images of the frame pipeline on a small generated scene: the live texturing (with
-//! and without the visibility fallback, no diminishing) and each fill (the paper's rectangle,
+//! and without the visibility fallback, and relit with feathered seams; no diminishing) and each fill (the paper's rectangle,
 //! our ray fill, the clean plate, the patch fill), composited over the same frame.
 //!
 //! The scene is 192x108 (2x2 supersampled), seed 3, with the key prop of animation frame 0
@@ -12,7 +12,7 @@
 
 use std::path::PathBuf;
 
-use pa_pipeline::ar::{ArFrame, ArSettings, Fill, RenderPath, Texturing};
+use pa_pipeline::ar::{ArFrame, ArSettings, Fill, LiveLook, RenderPath, Texturing};
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec};
@@ -76,6 +76,14 @@ fn texturing_and_fills_match_their_goldens() {
             "ar_texture_live_visibility",
             ArSettings {
                 fill: Fill::None,
+                ..ours
+            },
+        ),
+        (
+            "ar_texture_live_relit",
+            ArSettings {
+                fill: Fill::None,
+                look: LiveLook::RELIT_FEATHERED,
                 ..ours
             },
         ),

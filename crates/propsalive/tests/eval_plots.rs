@@ -5,14 +5,17 @@
 use std::process::Command;
 
 /// The methods of the degradation curves (the legend of both degradation plots).
-const CURVE_METHODS: [&str; 3] = [
+const CURVE_METHODS: [&str; 6] = [
     "paper (live, no visibility, rectangle fill)",
     "ours: live + visibility, ray fill",
     "ours, two key poses (frames 0 and 24)",
+    "ours: relit",
+    "ours: feathered seams",
+    "ours: relit + feathered seams",
 ];
 
 /// Every method (the categories of the method chart).
-const ALL_METHODS: [&str; 11] = [
+const ALL_METHODS: [&str; 14] = [
     "paper (live, no visibility, rectangle fill)",
     "live + visibility, rectangle fill",
     "live, no visibility, ray fill",
@@ -24,6 +27,9 @@ const ALL_METHODS: [&str; 11] = [
     "ours, two key poses (frames 0 and 24)",
     "tripod camera: paper",
     "tripod camera: ours",
+    "ours: relit",
+    "ours: feathered seams",
+    "ours: relit + feathered seams",
 ];
 
 fn read(path: &std::path::Path) -> String {

@@ -96,6 +96,33 @@ pub struct ArSettings {
     pub dilate_px: u32,
     /// Anti-aliased twin edges ([`crate::composite`]).
     pub anti_alias: bool,
+    /// How a live sample becomes the twin's colour (with visibility only: the light is
+    /// measured then).
+    pub look: LiveLook,
+}
+
+/// How a live sample becomes the twin's colour (`pa_raster::look`; both render paths).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LiveLook {
+    /// Shade live samples at the in-between's normal with the set's light measured on the key
+    /// prop ([`crate::shading`]): times `E(n_anim) / E(n_key)`.
+    pub relight: bool,
+    /// Blend live and fallback colour with a weight that goes smoothly to 0 towards each
+    /// fallback condition, instead of hard seams.
+    pub feather: bool,
+}
+
+impl LiveLook {
+    /// Hard seams, no relighting (the look before issue 13).
+    pub const PLAIN: Self = Self {
+        relight: false,
+        feather: false,
+    };
+    /// Relighting and feathered seams.
+    pub const RELIT_FEATHERED: Self = Self {
+        relight: true,
+        feather: true,
+    };
 }
 
 impl ArSettings {
@@ -106,6 +133,7 @@ impl ArSettings {
             fill: Fill::Rays,
             dilate_px: 4,
             anti_alias: true,
+            look: LiveLook::PLAIN,
         }
     }
 
@@ -116,6 +144,7 @@ impl ArSettings {
             fill: Fill::PaperRectangle,
             dilate_px: 0,
             anti_alias: false,
+            look: LiveLook::PLAIN,
         }
     }
 }

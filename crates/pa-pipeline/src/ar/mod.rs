@@ -34,7 +34,7 @@ use pa_track::{GrayImage, TrackState, Tracker};
 use crate::composite::composite_twin_over_in;
 use crate::twin::GpuTwin;
 
-pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
+pub use config::{ArSettings, Fill, LiveLook, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
 pub use hide::{BoardSheet, Hide, SHEET_MARGIN_M};

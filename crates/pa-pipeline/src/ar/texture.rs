@@ -220,6 +220,7 @@ impl ArPipeline {
                     Irradiance::constant(gain.unwrap_or([1.0; 3]))
                 };
                 let live_camera = LiveCamera::new(camera_model, camera_from_marker);
+                let look = self.settings.look;
                 let vis = if visibility {
                     self.visibility.as_ref()
                 } else {
@@ -254,6 +255,8 @@ impl ArPipeline {
                                     // take the lit fallback instead of a smeared sample.
                                     live.min_facing_cos = VISIBLE_MIN_FACING_COS;
                                     live.max_stretch = MAX_STRETCH;
+                                    live.relight = look.relight;
+                                    live.feather = look.feather;
                                 }
                                 let mem = memory.and_then(|m| m.get(pi)?.attributes.get(k));
                                 if let Some(a) = mem {
@@ -395,6 +398,8 @@ impl ArPipeline {
                     params.visibility = true;
                     params.min_facing_cos = VISIBLE_MIN_FACING_COS;
                     params.max_stretch = MAX_STRETCH;
+                    params.relight = self.settings.look.relight;
+                    params.feather = self.settings.look.feather;
                 }
                 pa_raster::Shading::Live { frame, params }
             }

@@ -137,7 +137,12 @@ impl Renderer {
                     l.depth_tolerance_m,
                 ];
                 u.fallback_irradiance = l.fallback_irradiance;
-                u.stretch = [l.max_stretch.max(0.0), 0.0, 0.0, 0.0];
+                u.stretch = [
+                    l.max_stretch.max(0.0),
+                    f32::from(u8::from(l.relight)),
+                    f32::from(u8::from(l.feather)),
+                    0.0,
+                ];
                 u.key_counts = [
                     d.joint_matrices.len() as u32,
                     l.key_joint_matrices.len() as u32,

@@ -29,7 +29,8 @@ struct LiveUniforms {
     // Irradiance on the model's own albedo where no live sample is valid: per linear RGB
     // channel, (constant, n.x, n.y, n.z) of the animated surface's world-space normal.
     fallback_irradiance: array<vec4<f32>, 3>,
-    // x: max stretch (animated / key-pose facing cosine; 0 = no test).
+    // x: max stretch (animated / key-pose facing cosine; 0 = no test), y: 1 = relight live
+    // samples, z: 1 = feathered seams (pa_raster::look).
     stretch: vec4<f32>,
     // x: key joint base, y: key joint count, z: key morph base, w: key morph count.
     key_counts: vec4<u32>,
@@ -69,6 +70,8 @@ struct LiveVsOut {
     @location(6) anim_normal_camera: vec3<f32>,
     // Texture memory (premultiplied RGB, confidence), interpolated like any attribute.
     @location(7) memory: vec4<f32>,
+    // The key-pose normal in the world (relighting).
+    @location(8) key_normal_world: vec3<f32>,
 }
 
 @vertex
@@ -89,6 +92,7 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
     if (live.flags.z == 1u && vid < arrayLength(&live_memory)) {
         out.memory = live_memory[vid];
     }
+    out.key_normal_world = vec3<f32>(0.0);
     if (live.flags.x == 1u) {
         let key = skin_vertex_pose(
             vid,
@@ -99,6 +103,7 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
             live.key_world_from_mesh,
         );
         let c = live.frame_camera_from_world;
+        out.key_normal_world = key.normal_world;
         out.key_camera = (c * vec4<f32>(key.position_world, 1.0)).xyz;
         out.key_normal_camera = transform_normal(
             mat3x3<f32>(c[0].xyz, c[1].xyz, c[2].xyz),
@@ -151,6 +156,43 @@ fn visibility_inv_z(x: i32, y: i32) -> f32 {
 struct LiveLookup {
     code: u32,
     pixel: vec2<f32>,
+    // The live sample's weight (pa_raster::look): 0 unless LIVE_VALID, 1 without feathering.
+    weight: f32,
+}
+
+// Feathered seams (pa_raster::look's constants).
+const EDGE_FEATHER_PX: f32 = 6.0;
+const FACING_FEATHER_COS: f32 = 0.25;
+const STRETCH_FEATHER: f32 = 0.5;
+// Relighting ratio clamp and irradiance floor.
+const RELIGHT_MIN: f32 = 0.7;
+const RELIGHT_MAX: f32 = 2.0;
+const MIN_IRRADIANCE: f32 = 0.02;
+
+// Smooth ramp from 0 at x <= 0 to 1 at x >= width (a step at 0 when width <= 0).
+fn ramp(x: f32, width: f32) -> f32 {
+    if (width > 0.0) {
+        let t = clamp(x / width, 0.0, 1.0);
+        return t * t * (3.0 - 2.0 * t);
+    }
+    return select(0.0, 1.0, x > 0.0);
+}
+
+// v / |v|, or zero for a zero vector (a model without normals: the irradiance's constant).
+fn unit_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    return select(vec3<f32>(0.0), v * inverseSqrt(len2), len2 > 0.0);
+}
+
+// The fallback irradiance at a world-space normal, floored.
+fn irradiance(n: vec3<f32>) -> vec3<f32> {
+    let sh = vec4<f32>(1.0, n);
+    let e = vec3<f32>(
+        dot(live.fallback_irradiance[0], sh),
+        dot(live.fallback_irradiance[1], sh),
+        dot(live.fallback_irradiance[2], sh),
+    );
+    return max(e, vec3<f32>(MIN_IRRADIANCE));
 }
 
 // Cosine between a normal and the direction from the point to the camera (at the origin).
@@ -163,6 +205,8 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> Li
     var out: LiveLookup;
     out.code = LIVE_OUTSIDE;
     out.pixel = vec2<f32>(0.0);
+    out.weight = 0.0;
+    let feather = live.stretch.z == 1.0;
     // 1. In front of the frame camera, inside the valid distortion range and the image.
     if (!(pc.z > 1e-6)) {
         return out;
@@ -186,11 +230,23 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> Li
         out.code = LIVE_BACK_FACING;
         return out;
     }
+    var weight = 1.0;
+    if (feather) {
+        let edge = min(min(pixel.x + 0.5, pixel.y + 0.5), min(size.x - 0.5 - pixel.x, size.y - 0.5 - pixel.y));
+        weight = ramp(edge, EDGE_FEATHER_PX) * ramp(cos_key - min_facing_cos, FACING_FEATHER_COS);
+    }
     // 2b. Not stretched: the animated surface does not face the camera far more squarely.
     let max_stretch = live.stretch.x;
-    if (max_stretch > 0.0 && facing_cos(pa, na) > max_stretch * max(cos_key, 0.0)) {
-        out.code = LIVE_STRETCHED;
-        return out;
+    if (max_stretch > 0.0) {
+        let limit = max_stretch * max(cos_key, 0.0);
+        let cos_anim = facing_cos(pa, na);
+        if (cos_anim > limit) {
+            out.code = LIVE_STRETCHED;
+            return out;
+        }
+        if (feather) {
+            weight *= ramp(limit - cos_anim, STRETCH_FEATHER * limit);
+        }
     }
     // 3. Not occluded: compare with the visibility map (pinhole projection, since the map is
     // rasterised without distortion), against the farthest surface of the 4 nearest texels.
@@ -220,12 +276,17 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> Li
         // an empty neighbourhood (inv_z = 0) never occludes.
         let rel = live.distortion_k3_tolerances.z;
         let abs_m = live.distortion_k3_tolerances.w;
-        if (pv.z * inv_z > 1.0 + rel + abs_m * inv_z) {
+        let tolerance = rel + abs_m * inv_z;
+        if (pv.z * inv_z > 1.0 + tolerance) {
             out.code = LIVE_OCCLUDED;
             return out;
         }
+        if (feather && inv_z > 0.0) {
+            weight *= ramp(1.0 + tolerance - pv.z * inv_z, tolerance);
+        }
     }
     out.code = LIVE_VALID;
+    out.weight = weight;
     return out;
 }
 
@@ -255,23 +316,24 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
             in.anim_normal_camera,
         );
         code = lookup.code;
+        var n = unit_or_zero(in.normal_world);
+        if (front_facing == (draw.flags.x == 1u)) {
+            n = -n;
+        }
+        // The remembered colour first, the lit model texture where the memory is unsure.
+        let lit = albedo.rgb * irradiance(n);
+        let fallback = in.memory.rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
         if (code == LIVE_VALID) {
             let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
-            rgb = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
-        } else {
-            var n = normalize(in.normal_world);
-            if (front_facing == (draw.flags.x == 1u)) {
-                n = -n;
+            var c = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
+            if (live.stretch.y == 1.0) {
+                // Relit at the animated normal: c E(n_anim) / E(n_key), clamped.
+                let ratio = irradiance(n) / irradiance(unit_or_zero(in.key_normal_world));
+                c *= clamp(ratio, vec3<f32>(RELIGHT_MIN), vec3<f32>(RELIGHT_MAX));
             }
-            let sh = vec4<f32>(1.0, n);
-            let e = vec3<f32>(
-                dot(live.fallback_irradiance[0], sh),
-                dot(live.fallback_irradiance[1], sh),
-                dot(live.fallback_irradiance[2], sh),
-            );
-            // The remembered colour first, the lit fallback where the memory is unsure.
-            let lit = albedo.rgb * max(e, vec3<f32>(0.02));
-            rgb = in.memory.rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
+            rgb = select(mix(fallback, c, lookup.weight), c, lookup.weight >= 1.0);
+        } else {
+            rgb = fallback;
         }
     } else if (draw.counts.w == 1u) {
         var n = normalize(in.normal_world);

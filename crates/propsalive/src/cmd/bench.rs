@@ -124,6 +124,8 @@ pub enum Method {
     Plate,
     /// Ours with the patch fill (seeded by the previous frame's result from the second frame).
     Patch,
+    /// Ours, live samples relit at the in-between's normal, feathered seams.
+    Relit,
 }
 
 impl Method {
@@ -139,6 +141,10 @@ impl Method {
                 fill: Fill::Patch { plate: false },
                 ..ArSettings::ours()
             },
+            Method::Relit => ArSettings {
+                look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
+                ..ArSettings::ours()
+            },
         }
     }
 
@@ -148,6 +154,7 @@ impl Method {
             Method::Paper => "paper (live texturing, no visibility, rectangle fill)",
             Method::Plate => "ours with clean plate (live + visibility, plate fill)",
             Method::Patch => "ours with the patch fill (live + visibility, patch fill)",
+            Method::Relit => "ours, relit with feathered seams (live + visibility, ray fill)",
         }
     }
 }

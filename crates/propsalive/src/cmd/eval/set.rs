@@ -82,7 +82,7 @@ pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
 }
 
 /// The fills compared on a set, with the generated scenes' method names.
-fn fills() -> [(&'static str, ArSettings); 4] {
+fn fills() -> [(&'static str, ArSettings); 5] {
     let ours = ArSettings::ours();
     [
         (
@@ -93,6 +93,13 @@ fn fills() -> [(&'static str, ArSettings); 4] {
             },
         ),
         ("ours: live + visibility, ray fill", ours),
+        (
+            "ours: relit + feathered seams",
+            ArSettings {
+                look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
+                ..ours
+            },
+        ),
         (
             "ours with clean plate",
             ArSettings {
@@ -115,6 +122,8 @@ fn short(name: &str) -> &'static str {
         "rectangle"
     } else if name.contains("patch") {
         "patch"
+    } else if name.contains("relit") {
+        "relit"
     } else if name.contains("plate") {
         "plate"
     } else if name.contains("memory") {
