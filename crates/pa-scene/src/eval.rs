@@ -196,6 +196,10 @@ pub fn pipeline_for(
         Some(tracker),
         settings,
     )?;
+    p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
+        &scene.board,
+        Some(f64::from(crate::scene::BOARD_SHEET_M)),
+    )));
     let (plate, plate_pose) = scene.clean_plate(renderer)?;
     let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
     p.set_clean_plate(plate, plate_pose);
@@ -226,11 +230,25 @@ pub fn run_scene_with<E: From<SceneError>>(
     settings: ArSettings,
     frames: impl IntoIterator<Item = u32>,
     keep_passes: bool,
+    each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_shadows(renderer, spec, settings, frames, keep_passes, false, each)
+}
+
+/// [`run_scene_with`] with the pipeline's shadows on or off ([`ArPipeline::set_shadows`]).
+pub fn run_scene_shadows<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    shadows: bool,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
     let mut pipeline = pipeline_for(&scene, renderer, settings)?;
     pipeline.set_keep_passes(keep_passes);
+    pipeline.set_shadows(shadows);
     let mut all = Vec::new();
     let mut flicker =
         Flicker::new(scene.intrinsics).with_plane_extent(f64::from(crate::scene::TABLE_M) * 0.5);

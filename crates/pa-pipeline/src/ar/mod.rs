@@ -16,6 +16,7 @@ mod config;
 mod fill;
 mod frame;
 mod shadows;
+mod surfaces;
 #[cfg(test)]
 mod tests;
 mod texture;
@@ -36,6 +37,7 @@ pub use config::{ArSettings, Fill, ParseRenderPathError, RenderPath, Texturing};
 pub use fill::{mask_from_bools, plane_homography};
 pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
 pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
+pub use surfaces::BoardSurfaces;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};
 
@@ -93,6 +95,8 @@ pub struct ArPipeline {
     shadows: shadows::ShadowState,
     /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
     patch_prior: Option<fill::PatchState>,
+    /// The board's surfaces for the patch fill, and their label map ([`surfaces`]).
+    surfaces: Option<(BoardSurfaces, Option<Mask>)>,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -163,6 +167,7 @@ impl ArPipeline {
             keep_passes: false,
             shadows: shadows::ShadowState::default(),
             patch_prior: None,
+            surfaces: None,
         })
     }
 

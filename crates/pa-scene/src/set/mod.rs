@@ -140,6 +140,11 @@ pub fn pipeline_for_set(
         Some(tracker),
         settings,
     )?;
+    // The kit prints the sheet at this size, centred on the marker (`board_sheet_m`).
+    p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
+        &set.board,
+        Some(f64::from(crate::scene::BOARD_SHEET_M)),
+    )));
     if let Some((plate, pose)) = &set.plate {
         let rgba8 = manifest::read_rgba8(&set.dir.join(plate), set.width, set.height)?;
         let plate = pa_diminish::ImageRgba8::new(set.width, set.height, rgba8)?;
@@ -155,9 +160,22 @@ pub fn run_set<E: From<SceneError>>(
     renderer: &mut Renderer,
     set: &SetManifest,
     settings: ArSettings,
-    mut each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+    each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
+    Ok(run_set_shadows(renderer, set, settings, false, each)?.0)
+}
+
+/// [`run_set`] with the pipeline's shadows on or off ([`ArPipeline::set_shadows`]); also
+/// returns the light the pipeline used at the end (estimated from the frames).
+pub fn run_set_shadows<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    set: &SetManifest,
+    settings: ArSettings,
+    shadows: bool,
+    mut each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+) -> Result<(Vec<FrameMetrics>, Option<pa_pipeline::shadow::ShadowLight>), E> {
     let mut pipeline = pipeline_for_set(set, renderer, settings)?;
+    pipeline.set_shadows(shadows);
     let mut flicker = Flicker::new(set.intrinsics);
     if let Some(table_m) = set.table_m {
         flicker = flicker.with_plane_extent(f64::from(table_m) * 0.5);
@@ -190,7 +208,7 @@ pub fn run_set<E: From<SceneError>>(
         each(f, &img, &out, &m)?;
         all.push(m);
     }
-    Ok(all)
+    Ok((all, pipeline.shadow_light()))
 }
 
 #[cfg(test)]

@@ -1,0 +1,206 @@
+//! The board's surfaces in the image, for the patch fill's surface term
+//! ([`pa_diminish::PatchFill::surfaces`]): every pixel of the fill's work region is labelled
+//! with what it shows, from the board pose: the table ([`TABLE`]), the printed sheet
+//! ([`SHEET`]) or a tag ([`TAG`]: its projected quad grown by [`TAG_GROW_PX`], so that the
+//! blurred rim of the black border counts as tag too). The patch fill then copies sheet into
+//! sheet, table into table, and no tag fragment into the white paper.
+
+use glam::{DVec2, DVec3, Mat4};
+use pa_camera::CameraModel;
+use pa_diminish::{Mask, Rect};
+use pa_track::Board;
+
+use super::ArPipeline;
+
+impl ArPipeline {
+    /// The board's surfaces for the patch fill's surface term (none: no surface term).
+    pub fn set_board_surfaces(&mut self, surfaces: Option<BoardSurfaces>) {
+        self.surfaces = surfaces.map(|s| (s, None));
+    }
+}
+
+/// The label map of `surfaces` over `rect` in a view of the board from `camera_from_marker`,
+/// in the buffer `buf` (made or remade at the frame's size); pixels outside `rect` hold
+/// stale labels.
+pub(super) fn surface_labels<'a>(
+    surfaces: &BoardSurfaces,
+    buf: &'a mut Option<Mask>,
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    (width, height): (u32, u32),
+    rect: Rect,
+) -> Option<&'a Mask> {
+    if buf.as_ref().map(Mask::size) != Some((width, height)) {
+        *buf = Some(Mask::zeros(width, height).ok()?);
+    }
+    let m = buf.as_mut()?;
+    surfaces.label(camera, camera_from_marker, rect, m);
+    Some(m)
+}
+
+/// The label of the table (everything off the sheet).
+pub const TABLE: u8 = 0;
+/// The label of the printed sheet around the tags.
+pub const SHEET: u8 = 1;
+/// The label of a tag (with its grown rim).
+pub const TAG: u8 = 2;
+/// Tags' quads are grown by this many pixels.
+pub const TAG_GROW_PX: f64 = 1.5;
+
+/// The board's printed surfaces on the marker plane (z = 0, marker frame, metres).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardSurfaces {
+    /// The sheet's corners (a convex quad), if its outline is known.
+    pub sheet: Option<[DVec3; 4]>,
+    /// Every tag's corners.
+    pub tags: Vec<[DVec3; 4]>,
+}
+
+impl BoardSurfaces {
+    /// The tags of `board`, and a square sheet of side `sheet_side_m` centred on the marker's
+    /// origin (where the generated and the Blender sets print it), if given.
+    pub fn new(board: &Board, sheet_side_m: Option<f64>) -> Self {
+        let sheet = sheet_side_m.map(|s| {
+            let h = 0.5 * s;
+            [
+                DVec3::new(-h, -h, 0.0),
+                DVec3::new(h, -h, 0.0),
+                DVec3::new(h, h, 0.0),
+                DVec3::new(-h, h, 0.0),
+            ]
+        });
+        Self {
+            sheet,
+            tags: board.tags.iter().map(|t| t.object_points()).collect(),
+        }
+    }
+
+    /// Writes the label of every pixel of `rect` into `out` (pixels outside `rect` are not
+    /// written). A quad with a corner behind the camera is left out.
+    pub fn label(
+        &self,
+        camera: &CameraModel,
+        camera_from_marker: Mat4,
+        rect: Rect,
+        out: &mut Mask,
+    ) {
+        let m = camera_from_marker.as_dmat4();
+        let project = |q: &[DVec3; 4]| -> Option<[DVec2; 4]> {
+            let mut o = [DVec2::ZERO; 4];
+            for (o, p) in o.iter_mut().zip(q) {
+                *o = camera.pixel_from_camera(m.transform_point3(*p))?;
+            }
+            Some(o)
+        };
+        let w = out.width() as usize;
+        let data = out.as_mut_slice();
+        for y in rect.y as usize..(rect.y + rect.height) as usize {
+            data[y * w + rect.x as usize..y * w + (rect.x + rect.width) as usize].fill(TABLE);
+        }
+        if let Some(q) = self.sheet.as_ref().and_then(project) {
+            paint_quad(data, w, rect, &q, 0.0, SHEET);
+        }
+        for q in self.tags.iter().filter_map(project) {
+            paint_quad(data, w, rect, &q, TAG_GROW_PX, TAG);
+        }
+    }
+}
+
+/// Sets to `label` the pixels of `rect` whose centre lies inside the convex quad `q` grown
+/// by `grow` pixels (its edges moved outwards).
+fn paint_quad(data: &mut [u8], w: usize, rect: Rect, q: &[DVec2; 4], grow: f64, label: u8) {
+    // Orientation: the signed area's sign makes every edge's inside positive.
+    let area: f64 = (0..4).map(|i| q[i].perp_dot(q[(i + 1) % 4])).sum();
+    if area.abs() < 1e-9 {
+        return;
+    }
+    let s = area.signum();
+    let edges: Vec<(DVec2, DVec2)> = (0..4)
+        .filter_map(|i| {
+            let (a, b) = (q[i], q[(i + 1) % 4]);
+            let d = b - a;
+            let len = d.length();
+            // Unit normal pointing inside; the edge line through `a`.
+            (len > 1e-12).then(|| (a, s * d.perp() / len))
+        })
+        .collect();
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for p in q {
+        x0 = x0.min(p.x);
+        y0 = y0.min(p.y);
+        x1 = x1.max(p.x);
+        y1 = y1.max(p.y);
+    }
+    let lo_x = (x0 - grow).floor().max(f64::from(rect.x)) as i64;
+    let lo_y = (y0 - grow).floor().max(f64::from(rect.y)) as i64;
+    let hi_x = (x1 + grow).ceil().min(f64::from(rect.x + rect.width) - 1.0) as i64;
+    let hi_y = (y1 + grow)
+        .ceil()
+        .min(f64::from(rect.y + rect.height) - 1.0) as i64;
+    for y in lo_y..=hi_y {
+        for x in lo_x..=hi_x {
+            let c = DVec2::new(x as f64, y as f64);
+            if edges.iter().all(|(a, n)| (c - *a).dot(*n) >= -grow) {
+                data[y as usize * w + x as usize] = label;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pa_camera::Intrinsics;
+
+    /// A camera looking straight down at the marker plane from 0.5 m: a marker point (x, y)
+    /// lands on pixel (cx + f x / 0.5, cy + f y / 0.5).
+    fn top_down() -> (CameraModel, Mat4) {
+        let cam = CameraModel::pinhole(Intrinsics {
+            fx: 500.0,
+            fy: 500.0,
+            cx: 99.5,
+            cy: 99.5,
+            width: 200,
+            height: 200,
+        });
+        (cam, Mat4::from_translation(glam::Vec3::new(0.0, 0.0, 0.5)))
+    }
+
+    #[test]
+    fn labels_follow_the_projected_sheet_and_tags() {
+        let (cam, pose) = top_down();
+        // Sheet 0.1 m: pixels 49.5..149.5; a tag of 0.02 m centred at (0.02, 0): pixels
+        // 109.5..129.5 in x, 89.5..109.5 in y.
+        let board = Board {
+            family: pa_track::TagFamily::Tag36h11,
+            tags: vec![pa_track::board::BoardTag {
+                id: 0,
+                center_m: glam::DVec2::new(0.02, 0.0),
+                size_m: 0.02,
+                rotation_rad: 0.0,
+            }],
+        };
+        let s = BoardSurfaces::new(&board, Some(0.1));
+        let mut out = Mask::new(200, 200, vec![9; 200 * 200]).expect("mask");
+        let rect = Rect::from_inclusive(10, 10, 189, 189);
+        s.label(&cam, pose, rect, &mut out);
+        let at = |x: usize, y: usize| out.as_slice()[y * 200 + x];
+        assert_eq!(at(5, 5), 9, "outside the rect: untouched");
+        assert_eq!(at(20, 100), TABLE);
+        assert_eq!(at(48, 100), TABLE);
+        assert_eq!(at(51, 100), SHEET);
+        assert_eq!(at(100, 100), SHEET);
+        assert_eq!(at(148, 100), SHEET);
+        assert_eq!(at(151, 100), TABLE);
+        assert_eq!(at(120, 100), TAG);
+        // Grown by 1.5 px: 0.5 px out is tag, 2.5 px out is sheet.
+        assert_eq!(at(109, 100), TAG);
+        assert_eq!(at(107, 100), SHEET);
+        assert_eq!(at(130, 100), TAG);
+        assert_eq!(at(132, 100), SHEET);
+        assert_eq!(at(120, 89), TAG);
+        assert_eq!(at(120, 87), SHEET);
+        assert_eq!(at(120, 110), TAG);
+        assert_eq!(at(120, 112), SHEET);
+    }
+}
