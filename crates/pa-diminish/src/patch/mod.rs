@@ -76,8 +76,9 @@ pub struct PatchParams {
     pub spatial_cap: f32,
     /// Weight `mu` of the temporal term.
     pub temporal_weight: f32,
-    /// Weight `kappa` of the surface term (colour^2 units; used with
-    /// [`PatchFill::surfaces`] only).
+    /// Weight `kappa` of the surface term (colour^2 units, summed over R, G, B: 100 000 is
+    /// about a black-for-white difference, so a source on another surface loses against
+    /// nearly any source on the same one; used with [`PatchFill::surfaces`] only).
     pub surface_weight: f32,
     /// Sources are searched in the mask's bounding box grown by this many pixels (at least;
     /// the margin also grows with the box: a quarter of its larger side).
@@ -104,7 +105,7 @@ impl Default for PatchParams {
             spatial_weight: 400.0,
             spatial_cap: 1.0,
             temporal_weight: 1.0,
-            surface_weight: 4000.0,
+            surface_weight: 100_000.0,
             margin_px: 24,
             coarsest_px: 16,
             sweeps: [2, 1, 0],

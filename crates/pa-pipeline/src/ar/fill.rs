@@ -155,25 +155,37 @@ impl ArPipeline {
         let (w, h) = background.size();
         let params = PatchParams::default();
         let margin = params.margin_px.max(region.width.max(region.height) / 4) + 1;
-        let labels = surfaces.as_mut().and_then(|(s, buf)| {
-            super::surfaces::surface_labels(
-                s,
-                buf,
-                &view.camera_model,
-                view.camera_from_marker,
-                (w, h),
-                region.expand_clipped(margin, w, h),
-            )
-        });
+        // Tag pixels to fill are redrawn from the board's print first (then known to the
+        // patch fill), in a copy of the fill mask.
+        let mut painted_mask: Option<Mask> = None;
+        let labels = match surfaces.as_mut() {
+            Some((s, buf)) => {
+                let work = region.expand_clipped(margin, w, h);
+                let (camera, pose) = (&view.camera_model, view.camera_from_marker);
+                let l = super::surfaces::surface_labels(s, buf, camera, pose, (w, h), work);
+                if let Some(l) = l {
+                    let mut m = fill_mask.clone();
+                    let img = background.as_mut_slice();
+                    if s.paint_tags(camera, pose, work, l, img, &mut m) > 0 {
+                        painted_mask = Some(m);
+                    }
+                }
+                l
+            }
+            None => None,
+        };
         let method = FillMethod::Patch(PatchFill {
             params,
             prior,
             plate,
             surfaces: labels,
         });
-        let filled = self
-            .diminisher
-            .fill_in_bbox(&mut background, fill_mask, region, &method);
+        let filled = self.diminisher.fill_in_bbox(
+            &mut background,
+            painted_mask.as_ref().unwrap_or(fill_mask),
+            region,
+            &method,
+        );
         self.surfaces = surfaces;
         filled?;
         match &mut self.patch_prior {

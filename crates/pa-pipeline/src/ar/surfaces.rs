@@ -46,6 +46,8 @@ pub const SHEET: u8 = 1;
 pub const TAG: u8 = 2;
 /// Tags' quads are grown by this many pixels.
 pub const TAG_GROW_PX: f64 = 1.5;
+/// Known pixels of each kind (black, white) needed to measure a frame's tag levels.
+pub const MIN_LEVEL_SAMPLES: usize = 12;
 
 /// The board's printed surfaces on the marker plane (z = 0, marker frame, metres).
 #[derive(Debug, Clone, PartialEq)]
@@ -54,6 +56,38 @@ pub struct BoardSurfaces {
     pub sheet: Option<[DVec3; 4]>,
     /// Every tag's corners.
     pub tags: Vec<[DVec3; 4]>,
+    /// Every tag's printed pattern (tags of an unknown id are left out).
+    prints: Vec<TagPrint>,
+}
+
+/// A tag's printed pattern on the marker plane.
+#[derive(Debug, Clone, PartialEq)]
+struct TagPrint {
+    center: DVec2,
+    /// (cos, sin) of its in-plane rotation.
+    rot: (f64, f64),
+    /// Metres a cell.
+    cell_m: f64,
+    /// Cells across the whole pattern (the white ring included).
+    total: u32,
+    /// One byte a cell, row-major: 0 black, 255 white.
+    cells: Vec<u8>,
+}
+
+impl TagPrint {
+    /// Whether the print is white at marker point `p` (the white ring and beyond: white).
+    fn white_at(&self, p: DVec2) -> bool {
+        let d = p - self.center;
+        let (c, s) = self.rot;
+        // Into the tag's own axes (rotate by -rotation).
+        let (u, v) = (c * d.x + s * d.y, -s * d.x + c * d.y);
+        let off = 0.5 * f64::from(self.total);
+        let (cu, cv) = ((u / self.cell_m + off).floor(), (v / self.cell_m + off).floor());
+        if cu < 0.0 || cv < 0.0 || cu >= f64::from(self.total) || cv >= f64::from(self.total) {
+            return true;
+        }
+        self.cells[cv as usize * self.total as usize + cu as usize] != 0
+    }
 }
 
 impl BoardSurfaces {
@@ -69,10 +103,121 @@ impl BoardSurfaces {
                 DVec3::new(-h, h, 0.0),
             ]
         });
+        let prints = match pa_track::family_layout(board.family) {
+            Ok(layout) => board
+                .tags
+                .iter()
+                .filter_map(|t| {
+                    let cells = pa_track::marker_cells(board.family, t.id).ok()?;
+                    Some(TagPrint {
+                        center: t.center_m,
+                        rot: (t.rotation_rad.cos(), t.rotation_rad.sin()),
+                        cell_m: t.size_m / f64::from(layout.border_cells.max(1)),
+                        total: cells.width,
+                        cells: cells.data,
+                    })
+                })
+                .collect(),
+            Err(_) => Vec::new(),
+        };
         Self {
             sheet,
             tags: board.tags.iter().map(|t| t.object_points()).collect(),
+            prints,
         }
+    }
+
+    /// Paints the board's known print into the pixels of `fill` (set, not hidden) that show a
+    /// tag (`labels` == [`TAG`]) in `rect`, and clears them in `fill`: a covered tag is
+    /// redrawn from its pattern, not invented. Each pixel is the mean of 2x2 samples of the
+    /// pattern (back-projected onto the marker plane), mapped to this frame's black and white
+    /// as measured on the known pixels of the tags in `rect` (mean colour of the known tag
+    /// pixels the pattern says are black, and of those it says are white, each at least
+    /// [`MIN_LEVEL_SAMPLES`]). Returns the pixels painted (0 when the levels are unknown).
+    pub fn paint_tags(
+        &self,
+        camera: &CameraModel,
+        camera_from_marker: Mat4,
+        rect: Rect,
+        labels: &Mask,
+        image: &mut [u8],
+        fill: &mut Mask,
+    ) -> usize {
+        if self.prints.is_empty() {
+            return 0;
+        }
+        let marker_from_camera = camera_from_marker.as_dmat4().inverse();
+        let origin = marker_from_camera.transform_point3(DVec3::ZERO);
+        // The marker point seen at pixel (x, y) (None: the ray misses the plane).
+        let on_plane = |x: f64, y: f64| -> Option<DVec2> {
+            let dir = marker_from_camera.transform_vector3(camera.ray_from_pixel(DVec2::new(x, y)));
+            if dir.z.abs() < 1e-12 {
+                return None;
+            }
+            let t = -origin.z / dir.z;
+            (t > 0.0).then(|| {
+                let p = origin + t * dir;
+                DVec2::new(p.x, p.y)
+            })
+        };
+        // The fraction of white at pixel (x, y): 2x2 samples.
+        let whiteness = |x: usize, y: usize| -> Option<f32> {
+            let mut n = 0u32;
+            for (ox, oy) in [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)] {
+                let p = on_plane(x as f64 + ox, y as f64 + oy)?;
+                // White unless a tag prints black there.
+                let white = self.prints.iter().all(|t| t.white_at(p));
+                n += u32::from(white);
+            }
+            Some(n as f32 / 4.0)
+        };
+        let w = fill.width() as usize;
+        let lab = labels.as_slice();
+        // Levels from the known tag pixels (pure black or pure white samples only).
+        let (mut black, mut white) = (([0.0f64; 3], 0usize), ([0.0f64; 3], 0usize));
+        for y in rect.y as usize..(rect.y + rect.height) as usize {
+            for x in rect.x as usize..(rect.x + rect.width) as usize {
+                let i = y * w + x;
+                if lab[i] != TAG || fill.as_slice()[i] != 0 {
+                    continue;
+                }
+                let Some(k) = whiteness(x, y) else { continue };
+                let acc = if k == 0.0 {
+                    &mut black
+                } else if k == 1.0 {
+                    &mut white
+                } else {
+                    continue;
+                };
+                for c in 0..3 {
+                    acc.0[c] += f64::from(image[i * 4 + c]);
+                }
+                acc.1 += 1;
+            }
+        }
+        if black.1 < MIN_LEVEL_SAMPLES || white.1 < MIN_LEVEL_SAMPLES {
+            return 0;
+        }
+        let lo = black.0.map(|v| v / black.1 as f64);
+        let hi = white.0.map(|v| v / white.1 as f64);
+        let mut painted = 0;
+        let data = fill.as_mut_slice();
+        for y in rect.y as usize..(rect.y + rect.height) as usize {
+            for x in rect.x as usize..(rect.x + rect.width) as usize {
+                let i = y * w + x;
+                if lab[i] != TAG || data[i] != Mask::SET {
+                    continue;
+                }
+                let Some(k) = whiteness(x, y) else { continue };
+                for c in 0..3 {
+                    let v = lo[c] + f64::from(k) * (hi[c] - lo[c]);
+                    image[i * 4 + c] = v.round().clamp(0.0, 255.0) as u8;
+                }
+                data[i] = 0;
+                painted += 1;
+            }
+        }
+        painted
     }
 
     /// Writes the label of every pixel of `rect` into `out` (pixels outside `rect` are not
