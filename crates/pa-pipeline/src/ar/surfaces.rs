@@ -82,7 +82,10 @@ impl TagPrint {
         // Into the tag's own axes (rotate by -rotation).
         let (u, v) = (c * d.x + s * d.y, -s * d.x + c * d.y);
         let off = 0.5 * f64::from(self.total);
-        let (cu, cv) = ((u / self.cell_m + off).floor(), (v / self.cell_m + off).floor());
+        let (cu, cv) = (
+            (u / self.cell_m + off).floor(),
+            (v / self.cell_m + off).floor(),
+        );
         if cu < 0.0 || cv < 0.0 || cu >= f64::from(self.total) || cv >= f64::from(self.total) {
             return true;
         }
@@ -347,5 +350,88 @@ mod tests {
         assert_eq!(at(120, 87), SHEET);
         assert_eq!(at(120, 110), TAG);
         assert_eq!(at(120, 112), SHEET);
+    }
+
+    /// A tag half hidden by the fill mask is redrawn from its print, in this frame's levels:
+    /// the truth is the tag image rendered independently (marker_cells, 4x4 samples a pixel).
+    #[test]
+    fn a_covered_tag_is_redrawn_from_its_print() {
+        let (cam, pose) = top_down();
+        let board = Board {
+            family: pa_track::TagFamily::Tag36h11,
+            tags: vec![pa_track::board::BoardTag {
+                id: 3,
+                center_m: glam::DVec2::ZERO,
+                size_m: 0.04,
+                rotation_rad: 0.0,
+            }],
+        };
+        let cells = pa_track::marker_cells(board.family, 3).expect("cells");
+        // Pixel (x, y) sees marker point ((x - 99.5) / 1000, (y - 99.5) / 1000); a cell is
+        // 5 mm, the pattern (10 cells with its white ring) spans +-25 mm.
+        let (black, white) = (30.0f64, 220.0f64);
+        let truth: Vec<f64> = (0..200 * 200)
+            .map(|i| {
+                let (x, y) = ((i % 200) as f64, (i / 200) as f64);
+                let mut k = 0.0;
+                for sy in 0..4 {
+                    for sx in 0..4 {
+                        let mx = (x - 0.375 + 0.25 * f64::from(sx) - 99.5) / 1000.0;
+                        let my = (y - 0.375 + 0.25 * f64::from(sy) - 99.5) / 1000.0;
+                        let (cu, cv) = ((mx / 0.005 + 5.0).floor(), (my / 0.005 + 5.0).floor());
+                        let w = !(0.0..10.0).contains(&cu)
+                            || !(0.0..10.0).contains(&cv)
+                            || cells.data[cv as usize * 10 + cu as usize] != 0;
+                        k += if w { 1.0 / 16.0 } else { 0.0 };
+                    }
+                }
+                black + k * (white - black)
+            })
+            .collect();
+        let mut image: Vec<u8> = truth
+            .iter()
+            .flat_map(|&v| {
+                let v = v.round() as u8;
+                [v, v, v, 255]
+            })
+            .collect();
+        // The right half of the tag is hidden (painted magenta) and to fill.
+        let mut fill = Mask::zeros(200, 200).expect("mask");
+        for y in 60..140 {
+            for x in 100..140 {
+                fill.as_mut_slice()[y * 200 + x] = Mask::SET;
+                image[(y * 200 + x) * 4..(y * 200 + x) * 4 + 3].copy_from_slice(&[250, 0, 200]);
+            }
+        }
+        let s = BoardSurfaces::new(&board, Some(0.1));
+        let rect = Rect::from_inclusive(40, 40, 159, 159);
+        let mut labels = Mask::zeros(200, 200).expect("labels");
+        s.label(&cam, pose, rect, &mut labels);
+        let before = fill.clone();
+        let n = s.paint_tags(&cam, pose, rect, &labels, &mut image, &mut fill);
+        let (mut close, mut total, mut err) = (0usize, 0usize, 0.0f64);
+        for i in 0..200 * 200 {
+            if before.as_slice()[i] == 0 || fill.as_slice()[i] != 0 {
+                continue;
+            }
+            total += 1;
+            let e = (f64::from(image[i * 4]) - truth[i]).abs();
+            err += e;
+            close += usize::from(e <= 48.0);
+            assert_eq!(labels.as_slice()[i], TAG, "only tag pixels are painted");
+        }
+        println!(
+            "painted {n}: {close}/{total} within 48 levels, mean error {:.1}",
+            err / total as f64
+        );
+        assert_eq!(n, total);
+        // The pattern's black square plus the grown rim: 20 x 40 px and more.
+        assert!(n >= 800, "{n} pixels painted");
+        assert!(close * 100 >= total * 97, "{close} of {total} close");
+        assert!(
+            err / (total as f64) < 6.0,
+            "mean error {}",
+            err / total as f64
+        );
     }
 }
