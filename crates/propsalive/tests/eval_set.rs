@@ -42,6 +42,10 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
         "| Blender: blender_bust | ours, patch fill |",
         "| Blender: blender_bust | ours: live + visibility, ray fill |",
         "| Blender: blender_bust | ours with clean plate |",
+        "| Blender: blender_bust | live + visibility, rectangle fill, shadows |",
+        "| Blender: blender_bust | ours, patch fill, shadows |",
+        "| Blender: blender_bust | ours: live + visibility, ray fill, shadows |",
+        "| Blender: blender_bust | ours with clean plate, shadows |",
     ] {
         let line = report
             .lines()
@@ -64,9 +68,15 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x 4 fills (rectangle, rays, plate, patch).
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(16));
+    // 4 frames x 4 fills (rectangle, rays, plate, patch) x shadows off and on.
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(32));
     assert!(out.join("blender_bust/plate/0006.png").is_file());
+    assert!(out.join("blender_bust/patch_shadows/0006.png").is_file());
+    let svg = std::fs::read_to_string(out.join("fills.svg")).expect("fills.svg");
+    assert!(
+        svg.contains("Blender: blender_bust, shadows on") && svg.contains("patch"),
+        "{svg}"
+    );
 }
 
 #[test]
