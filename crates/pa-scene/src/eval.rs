@@ -201,6 +201,10 @@ pub fn pipeline_for(
     for m in scene.marker_from_props().into_iter().skip(1) {
         p.add_prop(renderer, scene.model.clone(), 0, m)?;
     }
+    p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
+        &scene.board,
+        Some(f64::from(crate::scene::BOARD_SHEET_M)),
+    )));
     let (plate, plate_pose) = scene.clean_plate(renderer)?;
     let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;
     p.set_clean_plate(plate, plate_pose);
@@ -240,6 +244,30 @@ pub fn run_scene_with<E: From<SceneError>>(
         frames,
         keep_passes,
         |_, _, _| Ok(()),
+        each,
+    )
+}
+
+/// [`run_scene_with`] with the pipeline's shadows on or off ([`ArPipeline::set_shadows`]).
+pub fn run_scene_shadows<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    shadows: bool,
+    each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &[bool]) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_setup(
+        renderer,
+        spec,
+        settings,
+        frames,
+        keep_passes,
+        |_, _, p| {
+            p.set_shadows(shadows);
+            Ok(())
+        },
         each,
     )
 }

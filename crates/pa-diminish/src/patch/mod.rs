@@ -8,7 +8,15 @@
 //! spatial    = lambda / 4 * sum over the 4-neighbours n of p that are filled too of
 //!              min(|s + (n - p) - f(n)|^2, tau)
 //! temporal   = mu * |I(s) - prior(p)|^2          (where a prior colour exists)
+//! surface    = kappa * ([L(p) != L(s)] + mean over v of [L(p + v) != L(s + v)])
+//!              (where a surface map L is given)
 //! ```
+//!
+//! The surface term keeps copies on their own surface: `L` labels every pixel with the surface
+//! it shows (the table, the board's sheet, a tag: the pipeline projects them from the board
+//! pose, [`PatchFill::surfaces`]), so the black of a tag is not copied into the white paper,
+//! and a hole pixel near the sheet's edge prefers a source at the same place relative to an
+//! edge of the same orientation: the edge is continued across the hole.
 //!
 //! The spatial term rewards neighbouring pixels that copy neighbouring source pixels: the
 //! fill is made of coherent pieces of the surroundings, so straight structures (a sheet's
@@ -68,6 +76,10 @@ pub struct PatchParams {
     pub spatial_cap: f32,
     /// Weight `mu` of the temporal term.
     pub temporal_weight: f32,
+    /// Weight `kappa` of the surface term (colour^2 units, summed over R, G, B: 100 000 is
+    /// about a black-for-white difference, so a source on another surface loses against
+    /// nearly any source on the same one; used with [`PatchFill::surfaces`] only).
+    pub surface_weight: f32,
     /// Sources are searched in the mask's bounding box grown by this many pixels (at least;
     /// the margin also grows with the box: a quarter of its larger side).
     pub margin_px: u32,
@@ -93,6 +105,7 @@ impl Default for PatchParams {
             spatial_weight: 400.0,
             spatial_cap: 1.0,
             temporal_weight: 1.0,
+            surface_weight: 100_000.0,
             margin_px: 24,
             coarsest_px: 16,
             sweeps: [2, 1, 0],
@@ -126,6 +139,7 @@ impl PatchParams {
             ("spatial_weight", self.spatial_weight),
             ("spatial_cap", self.spatial_cap),
             ("temporal_weight", self.temporal_weight),
+            ("surface_weight", self.surface_weight),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, f64::from(v), "must be finite and >= 0");
@@ -174,6 +188,10 @@ pub struct PatchFill<'a> {
     /// A clean plate: where its sample is valid it is used (gain-matched, as
     /// [`crate::FillMethod::CleanPlate`]); the patch fill covers what it lacks.
     pub plate: Option<crate::plate::CleanPlate<'a>>,
+    /// The surface each pixel shows (same size as the frame; any labels, e.g. 0 the table, 1
+    /// the sheet, 2 a tag): a source on another surface than its target costs
+    /// [`PatchParams::surface_weight`] (see the module docs). Labels are read in the hole too.
+    pub surfaces: Option<&'a Mask>,
 }
 
 impl<'a> PatchFill<'a> {
@@ -208,6 +226,9 @@ pub(crate) fn patch_fill_region(
     if let Some(prior) = &fill.prior {
         crate::types::ensure_same_size("prior image", (fw, fh), prior.image.size())?;
         crate::types::ensure_same_size("prior mask", (fw, fh), prior.mask.size())?;
+    }
+    if let Some(surfaces) = fill.surfaces {
+        crate::types::ensure_same_size("surface map", (fw, fh), surfaces.size())?;
     }
     let to_do = to_fill.iter().filter(|&&v| v == FILL).count();
     if to_do == 0 {
@@ -248,6 +269,7 @@ pub(crate) fn patch_fill_region(
             region,
             state,
             fill.prior.as_ref().zip(prior_from_current.as_ref()),
+            fill.surfaces,
             // The temporal term only matters on the levels that are searched.
             usize::from(params.sweeps[2] == 0),
             params.coarsest_px,

@@ -32,6 +32,8 @@ pub(super) struct Level {
     /// The prior colour of each pixel (valid where `prior_ok`; both empty without a prior).
     pub prior: Vec<[f32; 3]>,
     pub prior_ok: Vec<bool>,
+    /// The surface label of each pixel (empty without a surface map).
+    pub label: Vec<u8>,
     /// Number of known pixels.
     pub known: usize,
     /// Indices of the known pixels (the coarsest level only; empty on the others).
@@ -56,6 +58,7 @@ impl Level {
             self.prior.resize(w * h, [0.0; 3]);
             self.prior_ok.resize(w * h, false);
         }
+        self.label.clear();
         self.sources.clear();
         self.holes.clear();
     }
@@ -108,13 +111,16 @@ impl Level {
 /// else hidden if any child is, else known (its colour the children's mean). Levels are added
 /// while the holes' box is larger than `coarsest_px` and the level larger than 8 x 8. The
 /// prior is sampled on level `prior_level` (or the coarsest, if there are fewer levels) and
-/// averaged down from there.
+/// averaged down from there. The surface labels (from `surfaces`, if given) go down as the
+/// most frequent of the 2x2 children's.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn build(
     levels: &mut Vec<Level>,
     frame: &ImageRgba8,
     region: Rect,
     state: impl Fn(usize, usize) -> u8 + Sync,
     prior: Option<(&PatchPrior<'_>, &Homography)>,
+    surfaces: Option<&Mask>,
     prior_level: usize,
     coarsest_px: u32,
 ) {
@@ -147,6 +153,14 @@ pub(super) fn build(
             }
         });
     l0.index();
+    if let Some(m) = surfaces {
+        let mw = m.width() as usize;
+        let md = m.as_slice();
+        for ly in 0..h {
+            let row = (y0 + ly) * mw + x0;
+            l0.label.extend_from_slice(&md[row..row + w]);
+        }
+    }
     if prior_level == 0 {
         if let Some((p, hom)) = prior {
             sample_level_prior(&mut levels[0], 0, region, p, hom);
@@ -260,6 +274,31 @@ fn downsample(fine: &Level, coarse: &mut Level) {
                 }
             }
         });
+    if !fine.label.is_empty() {
+        coarse.label.resize(w * h, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let mut ls = [0u8; 4];
+                let mut n = 0;
+                for c in children(x, y) {
+                    ls[n] = fine.label[c];
+                    n += 1;
+                }
+                let ls = &ls[..n];
+                // The most frequent (ties: the first child's).
+                let mut best = ls[0];
+                let mut best_n = 0;
+                for &a in ls {
+                    let k = ls.iter().filter(|&&b| b == a).count();
+                    if k > best_n {
+                        best = a;
+                        best_n = k;
+                    }
+                }
+                coarse.label[y * w + x] = best;
+            }
+        }
+    }
     if with_prior {
         for y in 0..h {
             for x in 0..w {

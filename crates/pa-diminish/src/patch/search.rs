@@ -39,6 +39,7 @@ struct Cost {
     lambda: f32,
     tau: f32,
     mu: f32,
+    kappa: f32,
 }
 
 /// Runs PatchMatch on every level, coarsest first; on return every hole of level 0 holds the
@@ -179,6 +180,7 @@ fn cost_of(params: &PatchParams, level: usize) -> Cost {
         lambda: params.spatial_weight / 4.0,
         tau: params.spatial_cap,
         mu: params.temporal_weight,
+        kappa: params.surface_weight,
     }
 }
 
@@ -431,6 +433,10 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
         let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
         total += cost.mu * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     }
+    let labels = !lv.label.is_empty();
+    if labels && lv.label[p] != lv.label[s] {
+        total += cost.kappa;
+    }
     if total >= bound {
         return total;
     }
@@ -464,6 +470,9 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
             let (a, b) = (lv.color[t], lv.color[q]);
             let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
             sum += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            if labels && lv.label[t] != lv.label[q] {
+                sum += cost.kappa;
+            }
             n += 1;
         }
     }

@@ -38,6 +38,7 @@ fn coarse_levels_mark_a_hole_where_any_child_is_one() {
         Rect::new(0, 0, 40, 40),
         state,
         None,
+        None,
         0,
         4,
     );
@@ -64,6 +65,7 @@ fn coarse_levels_mark_a_hole_where_any_child_is_one() {
         Rect::new(0, 0, 40, 40),
         state,
         None,
+        None,
         0,
         4,
     );
@@ -88,7 +90,16 @@ fn onion_peel_reaches_every_hole_and_reports_cut_off_ones() {
             KNOWN
         }
     };
-    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 0, 16);
+    build(
+        &mut levels,
+        &img,
+        Rect::new(0, 0, 9, 9),
+        state,
+        None,
+        None,
+        0,
+        16,
+    );
     assert!(onion_peel(&mut levels[0]));
     for &p in &levels[0].holes {
         assert_eq!(levels[0].color[p as usize], [90.0, 30.0, 10.0]);
@@ -99,6 +110,15 @@ fn onion_peel_reaches_every_hole_and_reports_cut_off_ones() {
         (a, b) if a.max(b) == 1 => HIDDEN,
         _ => KNOWN,
     };
-    build(&mut levels, &img, Rect::new(0, 0, 9, 9), state, None, 0, 16);
+    build(
+        &mut levels,
+        &img,
+        Rect::new(0, 0, 9, 9),
+        state,
+        None,
+        None,
+        0,
+        16,
+    );
     assert!(!onion_peel(&mut levels[0]));
 }

@@ -5,7 +5,7 @@ use glam::{DMat3, DVec3, Mat4};
 use pa_camera::CameraModel;
 use pa_diminish::{
     dilate_in_bbox, CleanPlate, DilateShape, FillMethod, Homography, ImageRgba8, Mask, PatchFill,
-    PatchPrior, RayDirections, Rect,
+    PatchParams, PatchPrior, RayDirections, Rect,
 };
 
 use super::texture::{Bbox, Textured};
@@ -150,13 +150,44 @@ impl ArPipeline {
             (Some((plate, _)), Some(h)) => Some(CleanPlate::new(plate, h)),
             _ => None,
         };
+        // The surfaces over the patch fill's work region (its margin, and a pixel more).
+        let mut surfaces = self.surfaces.take();
+        let (w, h) = background.size();
+        let params = PatchParams::default();
+        let margin = params.margin_px.max(region.width.max(region.height) / 4) + 1;
+        // Tag pixels to fill are redrawn from the board's print first (then known to the
+        // patch fill), in a copy of the fill mask.
+        let mut painted_mask: Option<Mask> = None;
+        let labels = match surfaces.as_mut() {
+            Some((s, buf)) => {
+                let work = region.expand_clipped(margin, w, h);
+                let (camera, pose) = (&view.camera_model, view.camera_from_marker);
+                let l = super::surfaces::surface_labels(s, buf, camera, pose, (w, h), work);
+                if let Some(l) = l {
+                    let mut m = fill_mask.clone();
+                    let img = background.as_mut_slice();
+                    if s.paint_tags(camera, pose, work, l, img, &mut m) > 0 {
+                        painted_mask = Some(m);
+                    }
+                }
+                l
+            }
+            None => None,
+        };
         let method = FillMethod::Patch(PatchFill {
+            params,
             prior,
             plate,
-            ..PatchFill::new()
+            surfaces: labels,
         });
-        self.diminisher
-            .fill_in_bbox(&mut background, fill_mask, region, &method)?;
+        let filled = self.diminisher.fill_in_bbox(
+            &mut background,
+            painted_mask.as_ref().unwrap_or(fill_mask),
+            region,
+            &method,
+        );
+        self.surfaces = surfaces;
+        filled?;
         match &mut self.patch_prior {
             Some(s) if s.image.size() == background.size() => {
                 s.image.copy_from(&background)?;

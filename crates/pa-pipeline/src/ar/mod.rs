@@ -18,6 +18,7 @@ mod frame;
 mod hide;
 mod memory;
 mod shadows;
+mod surfaces;
 #[cfg(test)]
 mod tests;
 mod texture;
@@ -40,6 +41,7 @@ pub use frame::{ArFrame, ArPasses, FrameTimes, StageTimings};
 pub use hide::{BoardSheet, Hide, SHEET_MARGIN_M};
 pub use memory::MemorySnapshot;
 pub use shadows::RETRY_FRAMES as SHADOW_RETRY_FRAMES;
+pub use surfaces::BoardSurfaces;
 pub use texture::colour_gain;
 use texture::{CpuState, Textured};
 
@@ -104,6 +106,8 @@ pub struct ArPipeline {
     hide: Option<hide::HideState>,
     /// The key props' remembered appearance ([`memory`]); kept by `reset_tracker`.
     memory: memory::TextureMemory,
+    /// The board's surfaces for the patch fill, and their label map ([`surfaces`]).
+    surfaces: Option<(BoardSurfaces, Option<Mask>)>,
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -176,6 +180,7 @@ impl ArPipeline {
             patch_prior: None,
             hide: None,
             memory: memory::TextureMemory::default(),
+            surfaces: None,
         })
     }
 

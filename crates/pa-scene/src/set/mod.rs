@@ -140,6 +140,11 @@ pub fn pipeline_for_set(
         Some(tracker),
         settings,
     )?;
+    // The kit prints the sheet at this size, centred on the marker (`board_sheet_m`).
+    p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
+        &set.board,
+        Some(f64::from(crate::scene::BOARD_SHEET_M)),
+    )));
     if let Some((plate, pose)) = &set.plate {
         let rgba8 = manifest::read_rgba8(&set.dir.join(plate), set.width, set.height)?;
         let plate = pa_diminish::ImageRgba8::new(set.width, set.height, rgba8)?;
@@ -157,7 +162,7 @@ pub fn run_set<E: From<SceneError>>(
     settings: ArSettings,
     each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
-    run_set_memory(renderer, set, settings, false, each)
+    Ok(run_set_with(renderer, set, settings, SetRun::default(), each)?.0)
 }
 
 /// [`run_set`] with the texture memory on or off (`crate::memory`): the set's key prop
@@ -167,10 +172,51 @@ pub fn run_set_memory<E: From<SceneError>>(
     set: &SetManifest,
     settings: ArSettings,
     memory: bool,
-    mut each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+    each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
+    let run = SetRun {
+        memory,
+        ..SetRun::default()
+    };
+    Ok(run_set_with(renderer, set, settings, run, each)?.0)
+}
+
+/// [`run_set`] with the pipeline's shadows on or off ([`ArPipeline::set_shadows`]); also
+/// returns the light the pipeline used at the end (estimated from the frames).
+pub fn run_set_shadows<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    set: &SetManifest,
+    settings: ArSettings,
+    shadows: bool,
+    each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+) -> Result<(Vec<FrameMetrics>, Option<pa_pipeline::shadow::ShadowLight>), E> {
+    let run = SetRun {
+        shadows,
+        ..SetRun::default()
+    };
+    run_set_with(renderer, set, settings, run, each)
+}
+
+/// What a set run switches on beyond `settings`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SetRun {
+    /// The pipeline's shadows ([`ArPipeline::set_shadows`]).
+    pub shadows: bool,
+    /// The texture memory ([`ArPipeline::set_texture_memory`]).
+    pub memory: bool,
+}
+
+/// [`run_set`] with `run`'s switches; also returns the light the pipeline used at the end.
+pub fn run_set_with<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    set: &SetManifest,
+    settings: ArSettings,
+    run: SetRun,
+    mut each: impl FnMut(&SetFrame, &SetImages, &ArFrame, &FrameMetrics) -> Result<(), E>,
+) -> Result<(Vec<FrameMetrics>, Option<pa_pipeline::shadow::ShadowLight>), E> {
     let mut pipeline = pipeline_for_set(set, renderer, settings)?;
-    pipeline.set_texture_memory(memory);
+    pipeline.set_shadows(run.shadows);
+    pipeline.set_texture_memory(run.memory);
     let mut flicker = Flicker::new(set.intrinsics);
     if let Some(table_m) = set.table_m {
         flicker = flicker.with_plane_extent(f64::from(table_m) * 0.5);
@@ -203,7 +249,7 @@ pub fn run_set_memory<E: From<SceneError>>(
         each(f, &img, &out, &m)?;
         all.push(m);
     }
-    Ok(all)
+    Ok((all, pipeline.shadow_light()))
 }
 
 #[cfg(test)]

@@ -81,6 +81,7 @@ fn dump_fills(
     (w, h): (u32, u32),
     seeds: &[u64],
     frames: &[u32],
+    (backgrounds, set): (&[Background], pa_scene::variant::SetOptions),
 ) -> Result<()> {
     let png = |path: PathBuf, rgba8: Vec<u8>| -> Result<()> {
         let img = image::RgbaImage::from_raw(w, h, rgba8).context("image size")?;
@@ -99,7 +100,7 @@ fn dump_fills(
             })
             .collect()
     };
-    for background in [Background::Wood, Background::Plain] {
+    for &background in backgrounds {
         for &seed in seeds {
             let sub = dir.join(format!("{background:?}_s{seed}").to_lowercase());
             std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
@@ -110,6 +111,7 @@ fn dump_fills(
                     width: w,
                     height: h,
                     background,
+                    set,
                     ..SceneSpec::default()
                 };
                 run_scene_with(
@@ -183,7 +185,14 @@ pub fn run(args: Args) -> Result<()> {
     // Frames 0..3 let the tracker lock on; then every `stride`-th frame.
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(stride as usize)).collect();
     if let Some(dir) = &args.dump_fills {
-        dump_fills(&mut renderer, dir, (w, h), &args.seeds, &frames)?;
+        dump_fills(
+            &mut renderer,
+            dir,
+            (w, h),
+            &args.seeds,
+            &frames,
+            (&backgrounds, variant.set),
+        )?;
         outln!("fill comparison PNGs in {}", dir.display());
     }
     let mut rows: Vec<MethodRow> = Vec::new();

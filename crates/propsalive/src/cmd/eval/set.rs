@@ -9,11 +9,12 @@ use anyhow::{Context, Result};
 use pa_pipeline::ar::{ArSettings, Fill};
 use pa_render::Renderer;
 use pa_report::eval::{methods_table, MethodRow};
+use pa_report::plot::{BarChart, BarGroup};
 use pa_report::stats::{mean, median};
-use pa_scene::eval::{run_scene, FrameMetrics};
+use pa_scene::eval::{run_scene_shadows, FrameMetrics};
 use pa_scene::scene::Background;
 use pa_scene::set::kit::{kit, KitModel, KitSpec};
-use pa_scene::set::{run_set_memory, SetManifest};
+use pa_scene::set::{run_set_with, SetManifest, SetRun};
 use pa_scene::SceneSpec;
 
 use super::Args;
@@ -117,6 +118,52 @@ fn fills() -> [(&'static str, ArSettings); 5] {
     ]
 }
 
+/// A fill's method name, with ", shadows" when the pipeline's shadows are on.
+fn with_shadows(method: &str, shadows: bool) -> String {
+    if shadows {
+        format!("{method}, shadows")
+    } else {
+        method.to_string()
+    }
+}
+
+/// The bar chart of revealed PSNR per fill (categories), one group per set and shadows off
+/// or on (`fills.svg`).
+fn fills_chart(rows: &[MethodRow]) -> BarChart {
+    let categories: Vec<&str> = fills().iter().map(|(m, _)| short(m)).collect();
+    let mut groups: Vec<BarGroup> = Vec::new();
+    let mut sets: Vec<&str> = Vec::new();
+    for r in rows {
+        if !sets.contains(&r.background.as_str()) {
+            sets.push(&r.background);
+        }
+    }
+    for set in sets {
+        for shadows in [false, true] {
+            groups.push(BarGroup {
+                name: format!("{set}, shadows {}", if shadows { "on" } else { "off" }),
+                values: fills()
+                    .iter()
+                    .map(|(m, _)| {
+                        let name = with_shadows(m, shadows);
+                        rows.iter()
+                            .find(|r| r.background == set && r.method == name)
+                            .and_then(|r| r.revealed_psnr_db)
+                    })
+                    .collect(),
+            });
+        }
+    }
+    BarChart {
+        title: "Revealed-background PSNR per fill, set and shadows".into(),
+        value_label: "revealed PSNR, dB (higher is better)".into(),
+        categories: categories.iter().map(|s| s.to_string()).collect(),
+        groups,
+        baseline: Some(0),
+        note: "baseline (dashed): the paper's rectangle".into(),
+    }
+}
+
 fn short(name: &str) -> &'static str {
     if name.contains("rectangle") {
         "rectangle"
@@ -211,19 +258,48 @@ pub fn run_sets(args: &Args) -> Result<()> {
             set.height,
             set.renderer
         );
-        // The fills, then ours with the texture memory (pa_scene::memory).
-        let memory_row = ("ours: + texture memory", ArSettings::ours(), true);
-        let methods = fills().into_iter().map(|(m, s)| (m, s, false));
-        for (method, settings, memory) in methods.chain([memory_row]) {
-            let frames_dir = args.out.join(&name).join(short(method));
+        // Every fill without and with shadows, then ours with the texture memory
+        // (pa_scene::memory).
+        let runs = fills()
+            .into_iter()
+            .flat_map(|(m, s)| {
+                [false, true].map(|shadows| {
+                    let run = SetRun {
+                        shadows,
+                        memory: false,
+                    };
+                    (m, s, run)
+                })
+            })
+            .chain([(
+                "ours: + texture memory",
+                ArSettings::ours(),
+                SetRun {
+                    shadows: false,
+                    memory: true,
+                },
+            )]);
+        for (method, settings, run) in runs {
+            let shadows = run.shadows;
+            let fill_dir = if shadows {
+                format!("{}_shadows", short(method))
+            } else {
+                short(method).to_string()
+            };
+            let method = with_shadows(method, shadows);
+            let frames_dir = args.out.join(&name).join(&fill_dir);
             if args.set.save_frames {
                 std::fs::create_dir_all(&frames_dir)
                     .with_context(|| format!("creating {}", frames_dir.display()))?;
             }
-            let all = run_set_memory(&mut renderer, &set, settings, memory, |f, _, out, m| {
-                errln!(
-                    "  {} frame {}: rot {} deg, trans {} mm, key IoU {}, prop {} dB, revealed {} dB",
-                    short(method),
+            let (all, light) = run_set_with(
+                &mut renderer,
+                &set,
+                settings,
+                run,
+                |f, _, out, m| {
+                    errln!(
+                    "  {fill_dir} frame {}: rot {} deg, trans {} mm, key IoU {}, prop {} dB, revealed {} dB",
                     f.index,
                     opt(m.rot_err_deg, 3),
                     opt(m.trans_err_mm, 2),
@@ -231,16 +307,24 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     opt(m.psnr_prop, 2),
                     opt(m.psnr_revealed, 2)
                 );
-                if args.set.save_frames {
-                    save_png(
-                        &frames_dir.join(format!("{:04}.png", f.index)),
-                        set.width,
-                        set.height,
-                        &out.rgba8,
-                    )?;
-                }
-                anyhow::Ok(())
-            })?;
+                    if args.set.save_frames {
+                        save_png(
+                            &frames_dir.join(format!("{:04}.png", f.index)),
+                            set.width,
+                            set.height,
+                            &out.rgba8,
+                        )?;
+                    }
+                    anyhow::Ok(())
+                },
+            )?;
+            if let Some(l) = light {
+                let t = l.toward_light;
+                errln!(
+                    "  {fill_dir}: light toward ({:.3}, {:.3}, {:.3}), softness {:.2} px, ratio {:.3}/{:.3}/{:.3}",
+                    t.x, t.y, t.z, l.softness_px, l.ratio_rgb[0], l.ratio_rgb[1], l.ratio_rgb[2]
+                );
+            }
             let _ = write!(details, "\n### {name}: {method}\n\n{}", frame_table(&all));
             for f in &all {
                 json_frames.push(serde_json::json!({
@@ -252,34 +336,49 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     "flicker_truth": f.flicker.map(|x| x.1),
                 }));
             }
-            rows.push(row(format!("Blender: {name}"), method, &all));
+            rows.push(row(format!("Blender: {name}"), &method, &all));
         }
     }
     if args.set.with_generated {
         let (w, h) = super::super::parse_size(&args.size)?;
+        let variant = pa_scene::parse_variant(&args.scene)?;
+        let background = variant.background.unwrap_or(Background::Wood);
         let frames: Vec<u32> = (0..3)
             .chain((3..49).step_by(args.stride as usize))
             .collect();
-        for (method, settings) in fills() {
+        for ((method, settings), shadows) in
+            fills().into_iter().flat_map(|f| [(f, false), (f, true)])
+        {
+            let method = with_shadows(method, shadows);
             let mut all = Vec::new();
             for &seed in &args.seeds {
-                errln!("generated Wood seed {seed}: {method}");
+                errln!(
+                    "generated {background:?} ({}) seed {seed}: {method}",
+                    args.scene
+                );
                 let spec = SceneSpec {
                     seed,
                     width: w,
                     height: h,
-                    background: Background::Wood,
+                    background,
+                    set: variant.set,
                     ..SceneSpec::default()
                 };
-                all.extend(run_scene(
+                all.extend(run_scene_shadows(
                     &mut renderer,
                     spec,
                     settings,
                     frames.iter().copied(),
-                    |_, _, _| anyhow::Ok(()),
+                    false,
+                    shadows,
+                    |_, _, _, _| anyhow::Ok(()),
                 )?);
             }
-            rows.push(row(format!("generated Wood {w}x{h}"), method, &all));
+            rows.push(row(
+                format!("generated {background:?} ({}) {w}x{h}", args.scene),
+                &method,
+                &all,
+            ));
         }
     }
     let report = format!(
@@ -303,13 +402,18 @@ pub fn run_sets(args: &Args) -> Result<()> {
     });
     pa_io::write_atomic(&args.out.join("report.md"), report.as_bytes())?;
     pa_io::write_atomic(
+        &args.out.join("fills.svg"),
+        fills_chart(&rows).to_svg().as_bytes(),
+    )?;
+    pa_io::write_atomic(
         &args.out.join("results.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),
     )?;
     out!("{}", methods_table(&rows));
     outln!(
-        "\nwrote {} and {}",
+        "\nwrote {}, {} and {}",
         args.out.join("report.md").display(),
+        args.out.join("fills.svg").display(),
         args.out.join("results.json").display()
     );
     Ok(())
