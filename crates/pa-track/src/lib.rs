@@ -53,6 +53,7 @@ pub mod board;
 pub mod detect;
 mod family;
 pub mod filter;
+pub mod image_target;
 pub mod marker;
 pub mod pose;
 mod quad;
@@ -62,6 +63,7 @@ pub mod tracker;
 pub use board::Board;
 pub use detect::{Detection, Detector, DetectorConfig, GrayImage, TagFamily};
 pub use filter::{OneEuro, PoseFilter, PoseFilterConfig};
+pub use image_target::{assess_picture, ImageObservation, ImageTarget, PictureQuality, Verdict};
 pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
 pub use pose::{
     estimate_tag_pose, pose_noise, tag_object_points, Pose, PoseCandidate, PoseEstimate, PoseNoise,
@@ -95,6 +97,16 @@ pub enum TrackError {
         min_hamming: u8,
         max_safe: u8,
     },
+    /// A picture target smaller than the tracker can use.
+    #[error("the picture is {width}x{height} px: its shorter side must be at least {min_side} px")]
+    PictureTooSmall {
+        width: u32,
+        height: u32,
+        min_side: u32,
+    },
+    /// A picture target with too few keypoints (flat or smooth).
+    #[error("the picture has {keypoints} keypoints, at least {min} are needed: it is too flat or smooth to track (see `propsalive marker --check`)")]
+    PictureFeatureless { keypoints: usize, min: usize },
     /// Pose estimation could not run on these points.
     #[error("pose estimation failed: {0}")]
     Pose(String),
