@@ -7,6 +7,7 @@ pub mod eval;
 pub mod export;
 pub mod inspect;
 pub mod marker;
+pub mod marker_check;
 pub mod new;
 pub mod preview;
 pub mod register;

@@ -5,6 +5,14 @@
 //! FILE.jsonl`), optionally drawing each frame with its detections and the marker axes
 //! (`--draw DIR`).
 //!
+//! `--image-target PICTURE --target-width-m W` tracks a printed picture instead of tags
+//! (`pa_track::ImageTarget`: marker origin at the picture's centre, +X along its width, +Y
+//! down it, +Z into the table; the height follows from its aspect). The JSON lines are the
+//! same and add `target_corners_px` (the picture's outer corners in the image, TL, TR, BR,
+//! BL of the picture, pixel-centre convention); `used_roi` then says the frame was found by
+//! frame-to-frame tracking rather than a full detection. A file that is not an image, or a
+//! picture too small or too flat to track, is refused with its name.
+//!
 //! Per-frame JSON: `frame` (index), `file` (for a video: the video's name, and `time_s`, the
 //! frame's presentation time), `width`, `height`, `state` (`searching`, `detected`,
 //! `tracked`, `lost`), `events`, `detections` (`family`, `id`, `corners_px` as
