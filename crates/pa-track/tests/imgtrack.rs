@@ -227,3 +227,31 @@ fn bad_pictures_give_typed_errors_and_warnings() {
     assert_eq!(q.verdict, Verdict::Good, "{q:?}");
     assert!(q.ambiguous_fraction < 0.1, "{q:?}");
 }
+
+#[test]
+fn frames_without_the_picture_give_no_pose_and_no_panic() {
+    let target = ImageTarget::new(&picture(), WIDTH_M).unwrap();
+    let cam = camera();
+    for (w, h) in [(0, 0), (1, 1), (30, 20), (1280, 720)] {
+        let frame = GrayImage::filled(w, h, 90);
+        assert!(target.detect(&frame, &cam).is_none(), "{w}x{h}");
+        let pred = view_pose(0.6, 10.0, 0.0, 0.0, 0.0);
+        assert!(
+            target.locate(&frame, &cam, Some(&pred)).is_none(),
+            "{w}x{h}"
+        );
+    }
+    // Another picture in view is not this one.
+    let other = natural_picture(640, 480, 99);
+    let frame = render_view(
+        &other,
+        WIDTH_M,
+        &pinhole(),
+        &view_pose(0.5, 20.0, 10.0, 0.0, 0.0),
+        90,
+        0.7,
+        2.0,
+        3,
+    );
+    assert!(target.detect(&frame, &cam).is_none());
+}

@@ -47,6 +47,9 @@ impl Level {
     /// Bilinear sample at (x, y) (pixel centres at integers), clamped at the border.
     #[inline]
     pub fn sample(&self, x: f32, y: f32) -> f32 {
+        if self.width == 0 || self.height == 0 {
+            return 0.0;
+        }
         let xm = (self.width - 1) as f32;
         let ym = (self.height - 1) as f32;
         let x = x.clamp(0.0, xm);
@@ -116,6 +119,9 @@ impl Level {
     /// A [1 4 6 4 1] / 16 separable blur (border pixels replicated).
     pub fn blurred(&self) -> Self {
         let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return self.clone();
+        }
         let mut tmp = vec![0u16; w * h];
         tmp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let src = &self.data[y * w..(y + 1) * w];
@@ -146,15 +152,20 @@ impl Level {
 /// An image pyramid with factor [`LEVEL_SCALE`] between levels.
 pub fn pyramid(img: &GrayImage, levels: usize) -> Vec<Level> {
     let mut out = vec![Level::from_gray(img)];
+    let min_side = 2 * BORDER as usize + 8;
     while out.len() < levels.max(1) {
         let n = out.len();
+        let last = &out[n - 1];
+        if (last.width.min(last.height) as f32 / LEVEL_SCALE) < min_side as f32 {
+            break;
+        }
         // Even levels from the level two below (factor 2, exact), odd ones from level 0.
         let next = if n >= 2 {
             out[n - 2].downscaled(2.0)
         } else {
             out[0].downscaled(LEVEL_SCALE)
         };
-        if next.width < 2 * BORDER as usize + 8 || next.height < 2 * BORDER as usize + 8 {
+        if next.width < min_side || next.height < min_side {
             break;
         }
         out.push(next);
