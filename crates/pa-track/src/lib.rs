@@ -9,6 +9,15 @@
 //! filter, [`PoseFilter`]) and region-of-interest search. [`Board::estimate_pose`] rejects tags
 //! whose corners disagree with the rest (a tag partly hidden by the prop) before its final fit.
 //!
+//! # Picture targets
+//!
+//! [`ImageTarget`] makes any printed picture the marker (module [`image_target`]): ORB-like
+//! keypoints computed once on the picture (plus affine-simulated oblique views), matched in
+//! the frame, a RANSAC homography, IPPE + LM pose, then frame-to-frame patch tracking (NCC +
+//! Lucas-Kanade from the predicted pose). [`TrackTarget::Image`] runs it through the same
+//! [`Tracker`] statechart; [`TrackOutput::target_corners_px`] gives the picture's corners.
+//! [`assess_picture`] says whether a picture can be tracked.
+//!
 //! # Detection modes and recall
 //!
 //! [`DetectorConfig::default`]: quad search at decimation 1 plus a merged pass at decimation 2

@@ -28,7 +28,7 @@ pub fn run(picture: &Path) -> Result<()> {
         q.keypoints
     );
     outln!(
-        "coverage: {:.0} % of a {COVERAGE_GRID}x{COVERAGE_GRID} grid holds keypoints (at least {:.0} % needed, {:.0} % or more is good)",
+        "coverage: {:.0} % of an {COVERAGE_GRID}x{COVERAGE_GRID} grid holds keypoints (at least {:.0} % needed, {:.0} % or more is good)",
         100.0 * q.coverage,
         100.0 * MIN_COVERAGE,
         100.0 * GOOD_COVERAGE
