@@ -93,6 +93,7 @@ mod tests {
             detections,
             used_ids,
             used_roi: false,
+            target_corners_px: None,
         }
     }
 

@@ -9,6 +9,15 @@
 //! filter, [`PoseFilter`]) and region-of-interest search. [`Board::estimate_pose`] rejects tags
 //! whose corners disagree with the rest (a tag partly hidden by the prop) before its final fit.
 //!
+//! # Picture targets
+//!
+//! [`ImageTarget`] makes any printed picture the marker (module [`image_target`]): ORB-like
+//! keypoints computed once on the picture (plus affine-simulated oblique views), matched in
+//! the frame, a RANSAC homography, IPPE + LM pose, then frame-to-frame patch tracking (NCC +
+//! Lucas-Kanade from the predicted pose). [`TrackTarget::Image`] runs it through the same
+//! [`Tracker`] statechart; [`TrackOutput::target_corners_px`] gives the picture's corners.
+//! [`assess_picture`] says whether a picture can be tracked.
+//!
 //! # Detection modes and recall
 //!
 //! [`DetectorConfig::default`]: quad search at decimation 1 plus a merged pass at decimation 2
@@ -55,6 +64,7 @@ pub mod board;
 pub mod detect;
 mod family;
 pub mod filter;
+pub mod image_target;
 pub mod marker;
 pub mod pose;
 mod quad;
@@ -64,6 +74,7 @@ pub mod tracker;
 pub use board::Board;
 pub use detect::{Detection, Detector, DetectorConfig, GrayImage, TagFamily};
 pub use filter::{OneEuro, PoseFilter, PoseFilterConfig};
+pub use image_target::{assess_picture, ImageObservation, ImageTarget, PictureQuality, Verdict};
 pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
 pub use pose::{
     estimate_tag_pose, pose_noise, tag_object_points, Pose, PoseCandidate, PoseEstimate, PoseNoise,
@@ -97,6 +108,16 @@ pub enum TrackError {
         min_hamming: u8,
         max_safe: u8,
     },
+    /// A picture target smaller than the tracker can use.
+    #[error("the picture is {width}x{height} px: its shorter side must be at least {min_side} px")]
+    PictureTooSmall {
+        width: u32,
+        height: u32,
+        min_side: u32,
+    },
+    /// A picture target with too few keypoints (flat or smooth).
+    #[error("the picture has {keypoints} keypoints, at least {min} are needed: it is too flat or smooth to track (see `propsalive marker --check`)")]
+    PictureFeatureless { keypoints: usize, min: usize },
     /// Pose estimation could not run on these points.
     #[error("pose estimation failed: {0}")]
     Pose(String),

@@ -17,8 +17,12 @@ use glam::DVec2;
 use pa_camera::CameraModel;
 
 use crate::board::{Board, BoardPose};
+use crate::image_target::ImageTarget;
 use crate::{Detection, Detector, DetectorConfig, GrayImage, Pose, PoseCandidate, PoseFilter};
 use crate::{PoseFilterConfig, TagFamily, TrackError};
+
+/// An accepted pose with its point pairs and the tag ids used.
+type Observed = (PoseCandidate, Vec<(glam::DVec3, DVec2)>, Vec<u32>);
 
 /// Tracking states.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -61,13 +65,21 @@ pub enum TrackTarget {
     },
     /// A board of tags.
     Board(Board),
+    /// A natural picture ([`ImageTarget`]): found by keypoint matching, then followed frame
+    /// to frame by patch tracking from the predicted pose.
+    Image(Box<ImageTarget>),
 }
 
 impl TrackTarget {
+    /// The board, or an empty board for a picture.
     fn board(&self) -> Board {
         match self {
             TrackTarget::Tag { family, id, size_m } => Board::single(*family, *id, *size_m),
             TrackTarget::Board(b) => b.clone(),
+            TrackTarget::Image(_) => Board {
+                family: TagFamily::Tag36h11,
+                tags: Vec::new(),
+            },
         }
     }
 }
@@ -121,8 +133,13 @@ pub struct TrackOutput {
     pub detections: Vec<Detection>,
     /// Ids of the target's tags used for the pose.
     pub used_ids: Vec<u32>,
-    /// Whether the region-of-interest search found the target (no full-frame pass).
+    /// Whether the region-of-interest search found the target (no full-frame pass); for a
+    /// picture, whether frame-to-frame tracking found it (no full detection).
     pub used_roi: bool,
+    /// A picture target's outer corners in the image (TL, TR, BR, BL of the picture, pixel
+    /// centres at integers): from this frame's measured pose when seen, from the filtered
+    /// pose while coasting; `None` for tags.
+    pub target_corners_px: Option<[DVec2; 4]>,
 }
 
 /// The tracker.
@@ -130,6 +147,7 @@ pub struct Tracker {
     pub config: TrackerConfig,
     camera: CameraModel,
     board: Board,
+    image: Option<Box<ImageTarget>>,
     detector: Detector,
     filter: PoseFilter,
     state: TrackState,
@@ -153,7 +171,11 @@ impl Tracker {
             .validate()
             .map_err(|e| TrackError::Config(e.to_string()))?;
         let board = target.board();
-        if board.tags.is_empty() {
+        let image = match target {
+            TrackTarget::Image(i) => Some(i),
+            _ => None,
+        };
+        if board.tags.is_empty() && image.is_none() {
             return Err(TrackError::Config("the board has no tags".into()));
         }
         let mut detector = detector;
@@ -164,6 +186,7 @@ impl Tracker {
             config,
             camera,
             board,
+            image,
             detector: Detector::new(detector)?,
             filter: PoseFilter::new(config.filter),
             state: TrackState::Searching,
@@ -180,9 +203,14 @@ impl Tracker {
         self.state
     }
 
-    /// The tracked board.
+    /// The tracked board (empty for a picture target).
     pub fn board(&self) -> &Board {
         &self.board
+    }
+
+    /// The tracked picture, for a picture target.
+    pub fn image_target(&self) -> Option<&ImageTarget> {
+        self.image.as_deref()
     }
 
     /// Back to Searching, forgetting history.
@@ -198,6 +226,18 @@ impl Tracker {
 
     /// Processes one frame taken at `time_s` seconds.
     pub fn update(&mut self, frame: &GrayImage, time_s: f64) -> Result<TrackOutput, TrackError> {
+        if frame.data.len() != frame.width as usize * frame.height as usize {
+            return Err(TrackError::BadImage {
+                width: frame.width,
+                height: frame.height,
+                len: frame.data.len(),
+            });
+        }
+        if let Some(image) = self.image.take() {
+            let out = self.update_image(&image, frame, time_s);
+            self.image = Some(image);
+            return Ok(out);
+        }
         let mut used_roi = false;
         let mut detections = None;
         if self.config.use_roi && self.state != TrackState::Searching {
@@ -255,16 +295,48 @@ impl Tracker {
             };
             (c.rms_px <= self.config.max_rms_px).then_some((c, bp))
         });
+        let observed = observed.map(|(c, bp)| (c, bp.correspondences.clone(), bp.used_ids.clone()));
+        Ok(self.step(observed, detections, time_s))
+    }
 
+    /// One frame of a picture target: tracking from the predicted pose, else detection.
+    fn update_image(&mut self, image: &ImageTarget, frame: &GrayImage, time_s: f64) -> TrackOutput {
+        let prior = match self.state {
+            TrackState::Searching => None,
+            _ => self.filter.predict(time_s).or(self.last_pose),
+        };
+        let obs = image.locate(frame, &self.camera, prior.as_ref());
+        let tracked = obs.as_ref().is_some_and(|o| o.tracked);
+        let observed = obs.and_then(|o| {
+            let c = match &self.last_pose {
+                Some(prev) => o.estimate.choose_consistent(prev),
+                None => o.estimate.best,
+            };
+            (c.rms_px <= self.config.max_rms_px).then_some((c, o.correspondences, Vec::new()))
+        });
+        let mut out = self.step(observed, Vec::new(), time_s);
+        out.used_roi = tracked && out.raw.is_some();
+        let corner_pose = out.raw.map(|c| c.pose).or(out.pose);
+        out.target_corners_px = corner_pose.and_then(|p| image.corners_px(&self.camera, &p));
+        out
+    }
+
+    /// The state machine on this frame's accepted pose (with its point pairs and tag ids).
+    fn step(
+        &mut self,
+        observed: Option<Observed>,
+        detections: Vec<Detection>,
+        time_s: f64,
+    ) -> TrackOutput {
         let mut events = Vec::new();
         let n = self.config.frames_to_track.max(1);
         let m = self.config.frames_to_lose.max(1);
         let k = self.config.frames_to_search;
         let mut raw = None;
         let mut used_ids = Vec::new();
-        if let Some((cand, bp)) = observed {
+        if let Some((cand, correspondences, ids)) = observed {
             raw = Some(cand);
-            used_ids = bp.used_ids.clone();
+            used_ids = ids;
             self.missed = 0;
             self.seen += 1;
             match self.state {
@@ -293,10 +365,10 @@ impl Tracker {
             }
             self.last_pose = Some(cand.pose);
             let (obj, img): (Vec<glam::DVec3>, Vec<DVec2>) =
-                bp.correspondences.iter().copied().unzip();
+                correspondences.iter().copied().unzip();
             let noise = crate::pose::pose_noise(&self.camera, &cand.pose, &obj, &img);
             self.last_filtered = Some(self.filter.filter_measured(cand.pose, noise, time_s));
-            self.roi = Some(self.target_box(&cand.pose, &bp.correspondences));
+            self.roi = Some(self.target_box(&cand.pose, &correspondences));
         } else {
             self.seen = 0;
             self.missed += 1;
@@ -329,7 +401,7 @@ impl Tracker {
             TrackState::Tracked => self.last_filtered,
             _ => None,
         };
-        Ok(TrackOutput {
+        TrackOutput {
             state: self.state,
             events,
             pose,
@@ -338,7 +410,8 @@ impl Tracker {
             detections,
             used_ids,
             used_roi: false,
-        })
+            target_corners_px: None,
+        }
     }
 
     /// Box around the whole board projected with `pose`, plus the seen corners, with margin.

@@ -98,6 +98,7 @@ fn frame_json_is_pinned() {
         detections: vec![detection()],
         used_ids: vec![3],
         used_roi: true,
+        target_corners_px: None,
     };
     let s = serde_json::to_string(&frame_json(7, "a.png", 640, 480, &out, 1.23456)).unwrap();
     assert_eq!(
@@ -119,6 +120,7 @@ fn frame_json_is_pinned() {
         detections: vec![],
         used_ids: vec![],
         used_roi: false,
+        target_corners_px: None,
     };
     let s = serde_json::to_string(&frame_json(0, "b.png", 0, 0, &empty, 0.0)).unwrap();
     assert_eq!(

@@ -38,8 +38,12 @@ pub struct Args {
     pub id: u32,
     /// Side of the tag's black border square in millimetres (what the tracker calls the
     /// tag size).
-    #[arg(long, required_unless_present_any = ["shot", "image"])]
+    #[arg(long, required_unless_present_any = ["shot", "image", "check"])]
     pub size_mm: Option<f64>,
+    /// Check whether PICTURE can be tracked as an image target (keypoints, spread,
+    /// repetition) and write nothing: see `marker_check`.
+    #[arg(long, conflicts_with_all = ["shot", "board", "size_mm", "out"])]
+    pub check: Option<PathBuf>,
     /// Print a shot's board (its `[[marker.tags]]`) with the footprint of each key prop (the
     /// outline of where its key pose touches the table, its name and a front arrow) instead
     /// of --family/--id/--board/--size-mm.
@@ -71,8 +75,8 @@ pub struct Args {
     /// Output: a file stem (`out/tag0` gives out/tag0.png and out/tag0.svg; a .png or .svg
     /// extension is dropped) or an existing folder (or a path ending in `/`), in which a name
     /// is made from the family, ids and size.
-    #[arg(long, short)]
-    pub out: PathBuf,
+    #[arg(long, short, required_unless_present = "check")]
+    pub out: Option<PathBuf>,
     /// Replace output files that exist.
     #[arg(long)]
     pub force: bool,
@@ -173,15 +177,16 @@ pub fn resolve(args: &Args) -> Result<Output> {
         }
         (None, None) => bail!("--size-mm or --shot is needed"),
     };
-    let out_str = args.out.to_string_lossy();
-    let stem = if args.out.is_dir() || out_str.ends_with('/') || out_str.ends_with('\\') {
-        args.out.join(&sheet.file_stem)
+    let out = args.out.as_deref().context("--out is needed")?;
+    let out_str = out.to_string_lossy();
+    let stem = if out.is_dir() || out_str.ends_with('/') || out_str.ends_with('\\') {
+        out.join(&sheet.file_stem)
     } else {
-        match args.out.extension().and_then(|e| e.to_str()) {
+        match out.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg") => {
-                args.out.with_extension("")
+                out.with_extension("")
             }
-            _ => args.out.clone(),
+            _ => out.to_path_buf(),
         }
     };
     let with_ext = |ext: &str| {
@@ -231,13 +236,16 @@ fn describe(sheet: &Sheet, path: &Path) -> String {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    if let Some(picture) = &args.check {
+        return super::marker_check::run(picture);
+    }
     if let (Some(picture), Some(w)) = (&args.image, args.width_mm) {
         return super::marker_image::run(
             picture,
             w,
             args.dpi,
             args.margin_mm,
-            &args.out,
+            args.out.as_deref().context("--out is required with --image")?,
             args.force,
         );
     }

@@ -8,6 +8,7 @@ pub mod export;
 pub mod inspect;
 pub mod marker;
 pub mod marker_image;
+pub mod marker_check;
 pub mod new;
 pub mod preview;
 pub mod register;

@@ -5,6 +5,14 @@
 //! FILE.jsonl`), optionally drawing each frame with its detections and the marker axes
 //! (`--draw DIR`).
 //!
+//! `--image-target PICTURE --target-width-m W` tracks a printed picture instead of tags
+//! (`pa_track::ImageTarget`: marker origin at the picture's centre, +X along its width, +Y
+//! down it, +Z into the table; the height follows from its aspect). The JSON lines are the
+//! same and add `target_corners_px` (the picture's outer corners in the image, TL, TR, BR,
+//! BL of the picture, pixel-centre convention); `used_roi` then says the frame was found by
+//! frame-to-frame tracking rather than a full detection. A file that is not an image, or a
+//! picture too small or too flat to track, is refused with its name.
+//!
 //! Per-frame JSON: `frame` (index), `file` (for a video: the video's name, and `time_s`, the
 //! frame's presentation time), `width`, `height`, `state` (`searching`, `detected`,
 //! `tracked`, `lost`), `events`, `detections` (`family`, `id`, `corners_px` as
@@ -58,8 +66,16 @@ pub struct Args {
     #[arg(long)]
     pub fov_deg: Option<f64>,
     /// Side of the tag's black border square in metres.
-    #[arg(long)]
-    pub tag_size_m: f64,
+    #[arg(long, required_unless_present = "image_target")]
+    pub tag_size_m: Option<f64>,
+    /// Track a printed picture (any image file) instead of tags: its centre is the marker
+    /// origin, +X along its width, +Y down it (needs `--target-width-m`).
+    #[arg(long, conflicts_with_all = ["board", "tag_size_m"], requires = "target_width_m")]
+    pub image_target: Option<PathBuf>,
+    /// Printed width of the `--image-target` picture, metres (its height follows from the
+    /// picture's aspect).
+    #[arg(long, requires = "image_target")]
+    pub target_width_m: Option<f64>,
     /// Tag family.
     #[arg(long, default_value = "tag36h11")]
     pub family: String,
@@ -190,40 +206,65 @@ fn is_video_input(input: &Path) -> bool {
 }
 
 /// Checks every flag and input before any work.
+/// A picture target from an image file.
+fn load_image_target(path: &Path, width_m: f64) -> Result<(TrackTarget, f64)> {
+    if !(width_m.is_finite() && width_m > 0.0 && width_m < 100.0) {
+        bail!("--target-width-m must be a positive length in metres, got {width_m}");
+    }
+    let img = image::open(path)
+        .with_context(|| format!("{}: not a readable image", path.display()))?
+        .to_luma8();
+    let gray = pa_track::GrayImage::from(&img);
+    let target = pa_track::ImageTarget::new(&gray, width_m)
+        .with_context(|| format!("{}: cannot be used as an image target", path.display()))?;
+    Ok((TrackTarget::Image(Box::new(target)), width_m))
+}
+
 pub fn resolve(args: &Args) -> Result<Config> {
     let family: TagFamily = args.family.parse()?;
-    if !(args.tag_size_m.is_finite() && args.tag_size_m > 0.0 && args.tag_size_m < 100.0) {
+    let tag_size_m = match (&args.image_target, args.tag_size_m) {
+        (Some(_), _) => 0.0,
+        (None, Some(s)) => s,
+        (None, None) => {
+            bail!("give --tag-size-m S (tags) or --image-target PICTURE --target-width-m W")
+        }
+    };
+    if args.image_target.is_none()
+        && !(tag_size_m.is_finite() && tag_size_m > 0.0 && tag_size_m < 100.0)
+    {
         bail!(
             "--tag-size-m must be a positive length in metres, got {}",
-            args.tag_size_m
+            tag_size_m
         );
     }
     if !(args.fps.is_finite() && args.fps > 0.0 && args.fps <= 10_000.0) {
         bail!("--fps must be in (0, 10000], got {}", args.fps);
     }
-    let (target, extent_m) = match &args.board {
-        Some(b) => {
+    let (target, extent_m) = match (&args.image_target, &args.board) {
+        (Some(p), _) => load_image_target(p, args.target_width_m.unwrap_or(f64::NAN))?,
+        (None, Some(b)) => {
             let (rows, cols) = super::parse_grid(b)?;
             let gap = args
                 .gap_m
                 .context("--board needs --gap-m (the gap between black squares, metres)")?;
-            let board = Board::grid(family, rows, cols, args.tag_size_m, gap, args.first_id)?;
-            let ext = (rows.max(cols) as f64) * (args.tag_size_m + gap);
+            let board = Board::grid(family, rows, cols, tag_size_m, gap, args.first_id)?;
+            let ext = (rows.max(cols) as f64) * (tag_size_m + gap);
             (TrackTarget::Board(board), ext)
         }
-        None => (
+        (None, None) => (
             TrackTarget::Tag {
                 family,
                 id: args.id,
-                size_m: args.tag_size_m,
+                size_m: tag_size_m,
             },
-            args.tag_size_m,
+            tag_size_m,
         ),
     };
     let layout = pa_track::family_layout(family)?;
     let max_id = match &target {
         TrackTarget::Tag { id, .. } => *id,
         TrackTarget::Board(b) => b.tags.iter().map(|t| t.id).max().unwrap_or(0),
+        TrackTarget::Image(_) => 0,
     };
     if max_id >= layout.id_count {
         bail!(
@@ -449,6 +490,12 @@ pub fn run(args: Args) -> Result<()> {
             tracked += 1;
         }
         let mut v = frame_json(i, &name, gray.width(), gray.height(), &out, ms);
+        if let Some(c) = out.target_corners_px {
+            v["target_corners_px"] = json!(c
+                .iter()
+                .map(|p| [round(p.x, 4), round(p.y, 4)])
+                .collect::<Vec<_>>());
+        }
         if let Some(t) = pts_s {
             v["time_s"] = json!(round(t, 6));
         }
