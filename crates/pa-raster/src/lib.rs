@@ -24,8 +24,8 @@
 
 pub mod error;
 pub mod live;
-pub mod memory;
 pub mod look;
+pub mod memory;
 pub mod mesh;
 pub mod raster;
 pub mod renderer;

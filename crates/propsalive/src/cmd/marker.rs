@@ -245,7 +245,9 @@ pub fn run(args: Args) -> Result<()> {
             w,
             args.dpi,
             args.margin_mm,
-            args.out.as_deref().context("--out is required with --image")?,
+            args.out
+                .as_deref()
+                .context("--out is required with --image")?,
             args.force,
         );
     }

@@ -292,13 +292,8 @@ pub fn run_sets(args: &Args) -> Result<()> {
                 std::fs::create_dir_all(&frames_dir)
                     .with_context(|| format!("creating {}", frames_dir.display()))?;
             }
-            let (all, light) = run_set_with(
-                &mut renderer,
-                &set,
-                settings,
-                run,
-                |f, _, out, m| {
-                    errln!(
+            let (all, light) = run_set_with(&mut renderer, &set, settings, run, |f, _, out, m| {
+                errln!(
                     "  {fill_dir} frame {}: rot {} deg, trans {} mm, key IoU {}, prop {} dB, revealed {} dB",
                     f.index,
                     opt(m.rot_err_deg, 3),
@@ -307,17 +302,16 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     opt(m.psnr_prop, 2),
                     opt(m.psnr_revealed, 2)
                 );
-                    if args.set.save_frames {
-                        save_png(
-                            &frames_dir.join(format!("{:04}.png", f.index)),
-                            set.width,
-                            set.height,
-                            &out.rgba8,
-                        )?;
-                    }
-                    anyhow::Ok(())
-                },
-            )?;
+                if args.set.save_frames {
+                    save_png(
+                        &frames_dir.join(format!("{:04}.png", f.index)),
+                        set.width,
+                        set.height,
+                        &out.rgba8,
+                    )?;
+                }
+                anyhow::Ok(())
+            })?;
             if let Some(l) = light {
                 let t = l.toward_light;
                 errln!(
