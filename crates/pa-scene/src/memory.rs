@@ -106,15 +106,7 @@ pub fn prime_with_scan(
         pa_camera::CameraModel::pinhole(scene.intrinsics),
         TrackTarget::Board(scene.board.clone()),
         DetectorConfig::default(),
-        TrackerConfig {
-            frames_to_track: 1,
-            use_roi: false,
-            filter: pa_track::PoseFilterConfig {
-                enabled: false,
-                ..Default::default()
-            },
-            ..Default::default()
-        },
+        TrackerConfig::per_still(),
     )?;
     let mut used = 0;
     for camera_from_marker in scan_orbit(scene, key_time_s, views) {

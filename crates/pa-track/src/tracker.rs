@@ -103,6 +103,23 @@ pub struct TrackerConfig {
     pub filter: PoseFilterConfig,
 }
 
+impl TrackerConfig {
+    /// Stills of a stop-motion take (the camera jumps between them; the tracker is reset
+    /// before each, `pa_video::source`'s policy): the first detection trusted, no region of
+    /// interest, no pose filter.
+    pub fn per_still() -> Self {
+        Self {
+            frames_to_track: 1,
+            use_roi: false,
+            filter: PoseFilterConfig {
+                enabled: false,
+                ..PoseFilterConfig::default()
+            },
+            ..Self::default()
+        }
+    }
+}
+
 impl Default for TrackerConfig {
     fn default() -> Self {
         Self {

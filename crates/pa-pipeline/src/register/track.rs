@@ -17,15 +17,7 @@ pub struct ViewTracker {
 impl ViewTracker {
     /// A tracker of `board` seen by `camera` that treats every frame as a new sequence.
     pub fn new(camera: CameraModel, board: Board) -> Result<Self, RegisterError> {
-        let config = TrackerConfig {
-            frames_to_track: 1,
-            use_roi: false,
-            filter: pa_track::PoseFilterConfig {
-                enabled: false,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
+        let config = TrackerConfig::per_still();
         let tracker = Tracker::new(
             camera,
             TrackTarget::Board(board),

@@ -105,15 +105,7 @@ pub fn measure_set_frame(
 /// them), tracked as `propsalive run` tracks stills (`pa_video::source`'s policy): each frame
 /// alone, the first detection trusted, no region of interest, no pose filter.
 pub fn stills_tracker_config() -> TrackerConfig {
-    TrackerConfig {
-        frames_to_track: 1,
-        use_roi: false,
-        filter: pa_track::PoseFilterConfig {
-            enabled: false,
-            ..Default::default()
-        },
-        ..Default::default()
-    }
+    TrackerConfig::per_still()
 }
 
 /// Builds the pipeline for a set: the real tracker on the set's board (the stills policy,

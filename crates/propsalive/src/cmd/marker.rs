@@ -178,9 +178,21 @@ pub fn resolve(args: &Args) -> Result<Output> {
         (None, None) => bail!("--size-mm or --shot is needed"),
     };
     let out = args.out.as_deref().context("--out is needed")?;
+    let (png, svg) = output_pair(out, &sheet.file_stem, args.force)?;
+    sheet.check_png_size()?;
+    Ok(Output { sheet, png, svg })
+}
+
+/// The `.png` and `.svg` files of `--out`: a stem, a `.png`/`.svg` path (extension dropped)
+/// or a folder (`default_stem` inside it); refused where one exists, unless `force`.
+pub(crate) fn output_pair(
+    out: &Path,
+    default_stem: &str,
+    force: bool,
+) -> Result<(PathBuf, PathBuf)> {
     let out_str = out.to_string_lossy();
     let stem = if out.is_dir() || out_str.ends_with('/') || out_str.ends_with('\\') {
-        out.join(&sheet.file_stem)
+        out.join(default_stem)
     } else {
         match out.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg") => {
@@ -197,12 +209,11 @@ pub fn resolve(args: &Args) -> Result<Output> {
     };
     let (png, svg) = (with_ext("png"), with_ext("svg"));
     for p in [&png, &svg] {
-        if p.exists() && !args.force {
+        if p.exists() && !force {
             bail!("{} exists; pass --force to replace it", p.display());
         }
     }
-    sheet.check_png_size()?;
-    Ok(Output { sheet, png, svg })
+    Ok((png, svg))
 }
 
 fn write_sheet(out: &Output) -> Result<()> {

@@ -12,31 +12,11 @@ use pa_overlay::sheet_image::{picture_png, picture_raster, picture_svg, PictureS
 /// The files of `--out` for a picture: a stem, a `.png`/`.svg` path (extension dropped) or a
 /// folder (the picture's stem is used).
 fn outputs(out: &Path, picture: &Path, force: bool) -> Result<(PathBuf, PathBuf)> {
-    let out_str = out.to_string_lossy();
-    let stem = if out.is_dir() || out_str.ends_with('/') || out_str.ends_with('\\') {
-        let name = picture
-            .file_stem()
-            .map_or_else(|| "picture".into(), |s| s.to_string_lossy().into_owned());
-        out.join(format!("{name}_print"))
-    } else {
-        match out.extension().and_then(|e| e.to_str()) {
-            Some(e) if e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg") => {
-                out.with_extension("")
-            }
-            _ => out.to_path_buf(),
-        }
-    };
-    let with_ext = |ext: &str| {
-        let mut s = stem.clone().into_os_string();
-        s.push(".");
-        s.push(ext);
-        PathBuf::from(s)
-    };
-    let (png, svg) = (with_ext("png"), with_ext("svg"));
+    let name = picture
+        .file_stem()
+        .map_or_else(|| "picture".into(), |s| s.to_string_lossy().into_owned());
+    let (png, svg) = super::marker::output_pair(out, &format!("{name}_print"), force)?;
     for p in [&png, &svg] {
-        if p.exists() && !force {
-            anyhow::bail!("{} exists; pass --force to replace it", p.display());
-        }
         if p == picture {
             anyhow::bail!(
                 "{} is the picture itself; choose another --out",

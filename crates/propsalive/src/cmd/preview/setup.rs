@@ -223,15 +223,7 @@ pub fn setup_shot(
     let tracker_cfg = if live {
         TrackerConfig::default()
     } else {
-        TrackerConfig {
-            frames_to_track: 1,
-            use_roi: false,
-            filter: pa_track::PoseFilterConfig {
-                enabled: false,
-                ..Default::default()
-            },
-            ..Default::default()
-        }
+        TrackerConfig::per_still()
     };
     let board_for_plate = board.clone();
     let tracker = Tracker::new(

@@ -124,15 +124,7 @@ pub fn load_plate(
         camera,
         TrackTarget::Board(board.clone()),
         DetectorConfig::default(),
-        TrackerConfig {
-            frames_to_track: 1,
-            use_roi: false,
-            filter: pa_track::PoseFilterConfig {
-                enabled: false,
-                ..Default::default()
-            },
-            ..Default::default()
-        },
+        TrackerConfig::per_still(),
     )?;
     let gray = pa_pipeline::ar::gray_from_rgba(img.as_raw(), width, height)?;
     let out = tracker.update(&gray, 0.0)?;

@@ -378,15 +378,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
         }
         if self.started.is_none() {
             let mut renderer = Renderer::new().context("starting the renderer")?;
-            let tracker_cfg = TrackerConfig {
-                frames_to_track: 1,
-                use_roi: false,
-                filter: pa_track::PoseFilterConfig {
-                    enabled: false,
-                    ..Default::default()
-                },
-                ..Default::default()
-            };
+            let tracker_cfg = TrackerConfig::per_still();
             let tracker = Tracker::new(
                 cfg.camera,
                 TrackTarget::Board(cfg.board.clone()),
