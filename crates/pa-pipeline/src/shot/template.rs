@@ -159,6 +159,14 @@ impl NewShot {
         line("# prop) or plate_frames = N (the take's first N stills); dilation_px = 4; shadows = false.");
         line("# [diminish]");
         line("# fill = \"rays\"");
+        line("");
+        line("# A scan pass before the take (optional; `run --scan` overrides it): a folder of");
+        line(
+            "# stills or a video circling the key prop once, inside this shot's folder; the twin's",
+        );
+        line("# parts the current frame cannot see take the colours remembered from it.");
+        line("# [scan]");
+        line("# input = \"scan\"");
         text
     }
 }
