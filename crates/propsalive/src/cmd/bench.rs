@@ -126,6 +126,10 @@ pub enum Method {
     Patch,
     /// Ours, live samples relit at the in-between's normal, feathered seams.
     Relit,
+    /// Ours with the texture memory on (updated in the texture stage from every tracked frame).
+    Memory,
+    /// Relit with feathered seams and the texture memory on.
+    RelitMemory,
 }
 
 impl Method {
@@ -141,11 +145,17 @@ impl Method {
                 fill: Fill::Patch { plate: false },
                 ..ArSettings::ours()
             },
-            Method::Relit => ArSettings {
+            Method::Relit | Method::RelitMemory => ArSettings {
                 look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
                 ..ArSettings::ours()
             },
+            Method::Memory => ArSettings::ours(),
         }
+    }
+
+    /// Whether the texture memory is on ([`ArPipeline::set_texture_memory`]).
+    fn memory(self) -> bool {
+        matches!(self, Method::Memory | Method::RelitMemory)
     }
 
     fn describe(self) -> &'static str {
@@ -155,6 +165,10 @@ impl Method {
             Method::Plate => "ours with clean plate (live + visibility, plate fill)",
             Method::Patch => "ours with the patch fill (live + visibility, patch fill)",
             Method::Relit => "ours, relit with feathered seams (live + visibility, ray fill)",
+            Method::Memory => "ours with the texture memory (live + visibility, ray fill)",
+            Method::RelitMemory => {
+                "ours, relit with feathered seams and the texture memory (live + visibility, ray fill)"
+            }
         }
     }
 }
@@ -448,6 +462,7 @@ fn run_config(
     // One pipeline prop per prop on the set, each at its spot.
     let mut pipe = pipeline_for(&scene, renderer, settings).map_err(anyhow::Error::msg)?;
     pipe.set_render_path(config.path);
+    pipe.set_texture_memory(plan.method.memory());
 
     bar.set_message("warming up");
     for f in &frames[..plan.warmup as usize] {
