@@ -332,6 +332,35 @@ pub struct Shot {
     /// The scan pass before a take ([`crate::shot_scan`]).
     #[serde(default, skip_serializing_if = "crate::shot_scan::ShotScan::is_empty")]
     pub scan: crate::shot_scan::ShotScan,
+    /// How live samples become the twin's colour (`[texture]`).
+    #[serde(default, skip_serializing_if = "ShotTexture::is_empty")]
+    pub texture: ShotTexture,
+}
+
+/// The shot's `[texture]`: relighting and feathered seams (`crate::ar::LiveLook`), both off
+/// unless the shot asks.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShotTexture {
+    /// Shade live samples at the in-between's normal with the set's light.
+    pub relight: bool,
+    /// Blend live and fallback colour smoothly instead of hard seams.
+    pub feather: bool,
+}
+
+impl ShotTexture {
+    /// Nothing asked (what the shot writer leaves out).
+    pub fn is_empty(&self) -> bool {
+        !self.relight && !self.feather
+    }
+
+    /// The pipeline's look.
+    pub fn look(&self) -> crate::ar::LiveLook {
+        crate::ar::LiveLook {
+            relight: self.relight,
+            feather: self.feather,
+        }
+    }
 }
 
 fn format_one() -> u32 {
@@ -580,6 +609,26 @@ size_m = 0.05
         let m = shot.placement.marker_from_prop();
         assert!((m.transform_vector3(Vec3::Y) - Vec3::NEG_Z).length() < 1e-6);
         assert!((m.transform_vector3(Vec3::Z) - Vec3::Y).length() < 1e-6);
+    }
+
+    #[test]
+    fn texture_table_sets_the_look_and_refuses_unknown_keys() {
+        let (_d, p) = write(SHOT);
+        let plain = Shot::load(&p).expect("valid");
+        assert_eq!(plain.texture.look(), crate::ar::LiveLook::PLAIN);
+        assert!(!plain.to_toml().expect("toml").contains("[texture]"));
+
+        let (_d, p) = write(&format!(
+            "{SHOT}\n[texture]\nrelight = true\nfeather = true\n"
+        ));
+        let lit = Shot::load(&p).expect("valid");
+        assert_eq!(lit.texture.look(), crate::ar::LiveLook::RELIT_FEATHERED);
+        let again: Shot = toml::from_str(&lit.to_toml().expect("toml")).expect("parse");
+        assert_eq!(again, lit);
+
+        let (_d, p) = write(&format!("{SHOT}\n[texture]\nrelit = true\n"));
+        let err = Shot::load(&p).expect_err("unknown key").to_string();
+        assert!(err.contains("texture.relit"), "{err}");
     }
 
     #[test]

@@ -167,6 +167,14 @@ impl NewShot {
         line("# parts the current frame cannot see take the colours remembered from it.");
         line("# [scan]");
         line("# input = \"scan\"");
+        line("");
+        line(
+            "# How the live texture becomes the twin's colour (optional): relight shades it at the",
+        );
+        line("# in-between's normals with the set's light; feather softens live/fallback seams.");
+        line("# [texture]");
+        line("# relight = true");
+        line("# feather = true");
         text
     }
 }

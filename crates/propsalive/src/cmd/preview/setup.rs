@@ -276,6 +276,8 @@ pub fn setup_shot(
         plate,
         has_plate,
     )?;
+    // After `apply`, which sets the diminish settings over ours.
+    pipeline.settings.look = shot.texture.look();
     Ok(Setup {
         renderer,
         pipeline,

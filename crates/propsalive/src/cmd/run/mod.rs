@@ -189,6 +189,8 @@ struct Config {
     hide: pa_pipeline::shot_hide::HideConfig,
     /// The scan pass's input (`--scan` or the shot's `[scan]`).
     scan: Option<PathBuf>,
+    /// The shot's `[texture]`: relighting and feathered seams.
+    look: pa_pipeline::ar::LiveLook,
 }
 
 fn resolve(args: &Args) -> Result<(Config, InputSource)> {
@@ -312,6 +314,7 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         diminish: dim,
         hide: hide_cfg,
         scan,
+        look: shot.texture.look(),
     };
     Ok((cfg, source))
 }
@@ -402,6 +405,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
             };
             let plate_pose = plate.as_ref().map(|p| p.1);
             diminish::apply(&mut pipeline, &cfg.diminish, plate)?;
+            pipeline.settings.look = cfg.look;
             hide::apply(
                 &mut pipeline,
                 &cfg.hide,
