@@ -9,8 +9,9 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use common::{fresh_root, lock, log, run, stderr, write_prop_and_shot};
-use pa_scene::SceneSpec;
+use common::{
+    fresh_root, lock, log, renderer_or_skip, run, scene_stills, stderr, write_prop_and_shot,
+};
 
 const STILLS: u32 = 4;
 const W: u32 = 320;
@@ -29,29 +30,9 @@ fn set() -> Option<&'static Set> {
 }
 
 fn make() -> Option<Set> {
-    let mut renderer = match pa_render::Renderer::new() {
-        Ok(r) => r,
-        Err(e) => {
-            println!("skipped: no renderer ({e})");
-            return None;
-        }
-    };
+    let mut renderer = renderer_or_skip()?;
     let root = fresh_root("run_diminish_");
-    let stills = root.join("stills");
-    std::fs::create_dir_all(&stills).expect("mkdir");
-    let spec = SceneSpec {
-        width: W,
-        height: H,
-        frames: STILLS,
-        ..SceneSpec::default()
-    };
-    let scene = pa_scene::Scene::new(spec.clone(), &mut renderer).expect("scene");
-    for i in 0..STILLS {
-        let f = scene.frame(&mut renderer, i).expect("frame");
-        let img = image::RgbaImage::from_raw(W, H, f.input.rgba8).expect("size");
-        img.save(stills.join(format!("s{}.png", i + 1)))
-            .expect("save");
-    }
+    let (scene, spec, stills) = scene_stills(&mut renderer, &root, STILLS, W, H);
     let (plate, _) = scene.clean_plate(&mut renderer).expect("plate");
     image::RgbaImage::from_raw(W, H, plate.rgba8)
         .expect("size")

@@ -8,9 +8,8 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use common::{fresh_root, lock, run, stderr, write_prop_and_shot};
+use common::{fresh_root, lock, renderer_or_skip, run, scene_stills, stderr, write_prop_and_shot};
 use pa_scene::scene::SheetLook;
-use pa_scene::SceneSpec;
 
 const STILLS: u32 = 2;
 const W: u32 = 640;
@@ -40,27 +39,9 @@ fn save(path: &Path, w: u32, h: u32, rgba: Vec<u8>) {
 }
 
 fn make() -> Option<Set> {
-    let mut renderer = match pa_render::Renderer::new() {
-        Ok(r) => r,
-        Err(e) => {
-            println!("skipped: no renderer ({e})");
-            return None;
-        }
-    };
+    let mut renderer = renderer_or_skip()?;
     let root = fresh_root("run_hide_");
-    let stills = root.join("stills");
-    std::fs::create_dir_all(&stills).expect("mkdir");
-    let spec = SceneSpec {
-        width: W,
-        height: H,
-        frames: STILLS,
-        ..SceneSpec::default()
-    };
-    let scene = pa_scene::Scene::new(spec.clone(), &mut renderer).expect("scene");
-    for i in 0..STILLS {
-        let f = scene.frame(&mut renderer, i).expect("frame");
-        save(&stills.join(format!("s{}.png", i + 1)), W, H, f.input.rgba8);
-    }
+    let (scene, spec, stills) = scene_stills(&mut renderer, &root, STILLS, W, H);
     let (plate, pose0) = scene.clean_plate(&mut renderer).expect("plate");
     save(&root.join("plate.png"), W, H, plate.rgba8);
     let bare = scene

@@ -136,15 +136,27 @@ pub struct GeneratedTake {
     pub reference: PathBuf,
 }
 
-pub fn generate_take(prefix: &str, stills: u32, width: u32, height: u32) -> Option<GeneratedTake> {
-    let mut renderer = match pa_render::Renderer::new() {
-        Ok(r) => r,
+/// The renderer, or None with a "skipped" line (a machine without any adapter).
+pub fn renderer_or_skip() -> Option<pa_render::Renderer> {
+    match pa_render::Renderer::new() {
+        Ok(r) => Some(r),
         Err(e) => {
             println!("skipped: no renderer ({e})");
-            return None;
+            None
         }
-    };
-    let root = fresh_root(prefix);
+    }
+}
+
+/// The built-in scene of `stills` frames at `width` x `height`, its input stills written as
+/// `s1.png` .. `sN.png` (so natural order matters) into `root/stills`: the scene, its spec and
+/// the stills' folder.
+pub fn scene_stills(
+    renderer: &mut pa_render::Renderer,
+    root: &Path,
+    stills: u32,
+    width: u32,
+    height: u32,
+) -> (pa_scene::Scene, SceneSpec, PathBuf) {
     let dir = root.join("stills");
     std::fs::create_dir_all(&dir).expect("mkdir");
     let spec = SceneSpec {
@@ -153,12 +165,19 @@ pub fn generate_take(prefix: &str, stills: u32, width: u32, height: u32) -> Opti
         frames: stills,
         ..SceneSpec::default()
     };
-    let scene = pa_scene::Scene::new(spec.clone(), &mut renderer).expect("scene");
+    let scene = pa_scene::Scene::new(spec.clone(), renderer).expect("scene");
     for i in 0..stills {
-        let f = scene.frame(&mut renderer, i).expect("frame");
+        let f = scene.frame(renderer, i).expect("frame");
         let img = image::RgbaImage::from_raw(width, height, f.input.rgba8).expect("size");
         img.save(dir.join(format!("s{}.png", i + 1))).expect("save");
     }
+    (scene, spec, dir)
+}
+
+pub fn generate_take(prefix: &str, stills: u32, width: u32, height: u32) -> Option<GeneratedTake> {
+    let mut renderer = renderer_or_skip()?;
+    let root = fresh_root(prefix);
+    let (_, spec, dir) = scene_stills(&mut renderer, &root, stills, width, height);
     let shot = write_prop_and_shot(&root, &spec);
     drop(renderer);
     let reference = root.join("reference");
