@@ -72,6 +72,26 @@ impl FrameCamera {
     }
 }
 
+#[cfg(test)]
+impl FrameCamera {
+    /// A 100x100 pinhole camera, f = 100 px, principal point at the centre (tests).
+    pub(crate) fn test_pinhole() -> Self {
+        Self {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 49.5,
+            cy: 49.5,
+            width: 100.0,
+            height: 100.0,
+            k1: 0.0,
+            k2: 0.0,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        }
+    }
+}
+
 /// Settings of the look-up (the `LiveTexturing` fields of the GPU path).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LiveParams {
@@ -257,19 +277,7 @@ mod tests {
     }
 
     fn params() -> LiveParams {
-        LiveParams::new(FrameCamera {
-            fx: 100.0,
-            fy: 100.0,
-            cx: 49.5,
-            cy: 49.5,
-            width: 100.0,
-            height: 100.0,
-            k1: 0.0,
-            k2: 0.0,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        })
+        LiveParams::new(FrameCamera::test_pinhole())
     }
 
     #[test]

@@ -3,19 +3,7 @@ use crate::live::FrameCamera;
 use crate::srgb::decode_lut;
 
 fn camera() -> LiveParams {
-    LiveParams::new(FrameCamera {
-        fx: 100.0,
-        fy: 100.0,
-        cx: 49.5,
-        cy: 49.5,
-        width: 100.0,
-        height: 100.0,
-        k1: 0.0,
-        k2: 0.0,
-        p1: 0.0,
-        p2: 0.0,
-        k3: 0.0,
-    })
+    LiveParams::new(FrameCamera::test_pinhole())
 }
 
 /// A key-depth map at constant 1/z over the whole image (0: empty).
