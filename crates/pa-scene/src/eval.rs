@@ -211,6 +211,26 @@ pub fn pipeline_for(
     Ok(p)
 }
 
+/// `pipeline` on a scene frame's input at its true pose, the key pose at time 0 (the tracker
+/// left out: what the tests of one stage compare).
+pub fn process_at_true_pose(
+    pipeline: &mut ArPipeline,
+    renderer: &mut Renderer,
+    f: &SceneFrame,
+) -> Result<ArFrame, pa_pipeline::ar::ArError> {
+    pipeline.process_with_pose(
+        renderer,
+        &f.input.rgba8,
+        f.input.width,
+        f.input.height,
+        FrameTimes {
+            animation_s: f.time_s,
+            key_pose_s: 0.0,
+        },
+        f.camera_from_marker,
+    )
+}
+
 /// Runs `settings` over the frames `frames` of a scene built from `spec`; `each` sees every
 /// (frame, output, metrics). The caller's error type `E` takes the scene's errors too, and an
 /// error from `each` ends the run.

@@ -28,18 +28,7 @@ fn run(renderer: &mut Renderer, scene: &Scene, settings: ArSettings, path: Rende
     let mut p = pipeline_for(scene, renderer, settings).expect("pipeline");
     p.set_render_path(path);
     let f = scene.frame(renderer, FRAME).expect("frame");
-    p.process_with_pose(
-        renderer,
-        &f.input.rgba8,
-        W,
-        H,
-        pa_pipeline::ar::FrameTimes {
-            animation_s: f.time_s,
-            key_pose_s: 0.0,
-        },
-        f.camera_from_marker,
-    )
-    .expect("process")
+    pa_scene::eval::process_at_true_pose(&mut p, renderer, &f).expect("process")
 }
 
 fn golden(name: &str, out: &ArFrame) {

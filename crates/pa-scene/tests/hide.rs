@@ -49,19 +49,7 @@ fn process(
     p.set_render_path(path);
     p.set_hide(hide);
     let f = scene.frame(renderer, frame).expect("frame");
-    let (w, h) = (scene.spec.width, scene.spec.height);
-    p.process_with_pose(
-        renderer,
-        &f.input.rgba8,
-        w,
-        h,
-        FrameTimes {
-            animation_s: f.time_s,
-            key_pose_s: 0.0,
-        },
-        f.camera_from_marker,
-    )
-    .expect("process")
+    pa_scene::eval::process_at_true_pose(&mut p, renderer, &f).expect("process")
 }
 
 /// Grows a mask by `r` pixels (square).

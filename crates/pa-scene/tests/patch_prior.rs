@@ -5,9 +5,7 @@
 //! fills exactly as a fresh one.
 
 use pa_camera::CameraModel;
-use pa_pipeline::ar::{
-    plane_homography, ArFrame, ArPipeline, ArSettings, Fill, FrameTimes, RenderPath,
-};
+use pa_pipeline::ar::{plane_homography, ArFrame, ArPipeline, ArSettings, Fill, RenderPath};
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::scene::{CameraPath, SceneFrame};
@@ -17,18 +15,7 @@ const W: u32 = 192;
 const H: u32 = 108;
 
 fn process(p: &mut ArPipeline, renderer: &mut Renderer, f: &SceneFrame) -> ArFrame {
-    p.process_with_pose(
-        renderer,
-        &f.input.rgba8,
-        W,
-        H,
-        FrameTimes {
-            animation_s: f.time_s,
-            key_pose_s: 0.0,
-        },
-        f.camera_from_marker,
-    )
-    .expect("process")
+    pa_scene::eval::process_at_true_pose(p, renderer, f).expect("process")
 }
 
 /// Mean squared difference over R, G, B of the pixels where `mask` is set.

@@ -13,7 +13,7 @@
 
 use std::path::PathBuf;
 
-use pa_pipeline::ar::{ArFrame, ArSettings, Fill, FrameTimes, RenderPath};
+use pa_pipeline::ar::{ArFrame, ArSettings, Fill, RenderPath};
 use pa_pipeline::metrics::psnr_region;
 use pa_render::{LiveSample, Renderer};
 
@@ -49,18 +49,7 @@ fn run(renderer: &mut Renderer, scene: &Scene, path: RenderPath, memory: bool) -
         assert_eq!(p.memory_frames(), 24);
     }
     let f = scene.frame(renderer, FRAME).expect("frame");
-    p.process_with_pose(
-        renderer,
-        &f.input.rgba8,
-        W,
-        H,
-        FrameTimes {
-            animation_s: f.time_s,
-            key_pose_s: 0.0,
-        },
-        f.camera_from_marker,
-    )
-    .expect("process")
+    pa_scene::eval::process_at_true_pose(&mut p, renderer, &f).expect("process")
 }
 
 #[test]
