@@ -22,6 +22,8 @@ pub enum Action {
     CycleFill,
     /// Shadows on or off (the key prop's lifted, the twin's cast).
     ToggleShadows,
+    /// The board hidden (the shot's `hide`: cover or plate) or shown.
+    ToggleHide,
     ToggleAxes,
     ToggleMasks,
     ToggleOnion,
@@ -68,6 +70,7 @@ pub const HELP: &[&str] = &[
     "D             diminished reality on / off",
     "F             next fill (rays, plate, rectangle, ...)",
     "S             shadows on / off (lift the prop's, cast the twin's)",
+    "B             board hidden / shown (the shot's hide: cover or plate)",
     "A             tracked marker axes",
     "M             masks (key pose magenta, twin cyan)",
     "O             onion skin (previous in-between red, next green)",

@@ -141,6 +141,8 @@ pub struct PreviewState {
     pub fill: usize,
     /// Shadows: the key prop's cast shadow lifted, the twin's cast.
     pub shadows: bool,
+    /// The board hidden as the shot's `hide` says (cover or plate); off shows it.
+    pub hide_board: bool,
     pub overlays: Overlays,
     pub recording: bool,
     /// Placement mode: the key pose's outline is drawn and the nudge keys move it.
@@ -172,6 +174,7 @@ impl PreviewState {
             fills: vec!["rays".into()],
             fill: 0,
             shadows: false,
+            hide_board: true,
             overlays: Overlays::default(),
             recording: false,
             placing: false,
@@ -274,6 +277,10 @@ impl PreviewState {
             }
             Action::ToggleShadows => {
                 self.shadows = !self.shadows;
+                Effect::None
+            }
+            Action::ToggleHide => {
+                self.hide_board = !self.hide_board;
                 Effect::None
             }
             Action::ToggleAxes => {
@@ -476,6 +483,11 @@ mod tests {
         assert_eq!(s.fill_name(), "rays");
         assert_eq!(state().with_fills(vec!["a".into()], 9).fill, 0);
         assert_eq!(s.apply(Action::ToggleShadows), Effect::None);
+        assert!(s.hide_board, "the shot's hide is on at the start");
+        assert_eq!(s.apply(Action::ToggleHide), Effect::None);
+        assert!(!s.hide_board);
+        s.apply(Action::ToggleHide);
+        assert!(s.hide_board);
         assert!(s.shadows);
         s.apply(Action::ToggleShadows);
         assert!(!s.shadows);

@@ -153,7 +153,8 @@ fn trial(
     seed: u64,
 ) -> (Trial, PlacementParams) {
     let camera = CameraModel::pinhole(scene.intrinsics);
-    let mut tracker = ViewTracker::new(camera, scene.board.clone()).unwrap();
+    let mut tracker =
+        ViewTracker::new(camera, pa_track::TrackTarget::Board(scene.board.clone())).unwrap();
     let mut vs: Vec<RegisterView> = Vec::new();
     for i in 0..views {
         let pose = view_pose(i, views, elevation, o.spread);

@@ -16,6 +16,8 @@
 //!
 //! [marker]
 //! family = "tag36h11"
+//! # image = "floor.png"         # a printed picture as the marker (or with the tags), relative
+//! # width_m = 0.3               #   to the shot; its printed width (height from its aspect)
 //! hide = "none"                 # optional: none, cover, plate (see crate::shot_hide)
 //! # cover = "rug.png"           # the picture over the board (hide = cover)
 //! [[marker.tags]]               # board layout, marker frame (metres); one entry = one tag
@@ -226,12 +228,24 @@ pub struct ShotCamera {
     pub fov_y_deg: Option<f64>,
 }
 
-/// The marker board.
+/// The marker: a board of tags, a printed picture, or both in one marker frame.
+///
+/// With `image`, the marker frame is the picture's: origin at its centre, +X along its
+/// width, +Y down it, +Z into the table; `width_m` is its printed width (the height follows
+/// from its aspect) and the tags, if any, sit at their `center_m` in that frame (printed on or
+/// beside the picture). `image` is relative to the shot and must stay inside its folder.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShotMarker {
     #[serde(default = "default_family")]
     pub family: String,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub tags: Vec<ShotTag>,
+    /// A printed picture tracked by its natural features.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image: Option<PathBuf>,
+    /// The picture's printed width, metres (with `image`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width_m: Option<f64>,
     /// What replaces the board in the final frames ([`crate::shot_hide`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hide: Option<String>,
@@ -434,8 +448,30 @@ impl Shot {
                 return Err(bad(format!("key pose {:?} is named twice", k.name)));
             }
         }
-        if self.marker.tags.is_empty() {
-            return Err(bad("the marker needs at least one tag".into()));
+        match (&self.marker.image, self.marker.width_m) {
+            (None, None) if self.marker.tags.is_empty() => {
+                return Err(bad(
+                    "the marker needs at least one tag ([[marker.tags]]) or a picture ([marker] image and width_m)".into(),
+                ));
+            }
+            (None, None) => {}
+            (Some(_), None) => {
+                return Err(bad(
+                    "[marker] image needs width_m, the picture's printed width in metres".into(),
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(bad(
+                    "[marker] width_m is the width of a picture marker: give image too".into(),
+                ));
+            }
+            (Some(_), Some(w)) => {
+                if !(w.is_finite() && w > 0.0 && w <= 100.0) {
+                    return Err(bad(format!(
+                        "[marker] width_m must be a printed width in (0, 100] metres, got {w}"
+                    )));
+                }
+            }
         }
         // The value is not repeated (a file that is not ours may have parsed this far).
         let family: pa_track::TagFamily = self.marker.family.parse().map_err(|_| {
@@ -657,10 +693,10 @@ size_m = 0.05
         let placed = format!("{SHOT}\n[placement]\nyaw_deg = 10.0\n");
         for (text, dotted, needle, hint) in [
             (
-                SHOT.replace("[marker]\n", "[marker]\nimage = \"x.png\"\n"),
-                "marker.image",
-                "image",
-                None,
+                SHOT.replace("[marker]\n", "[marker]\nimgae = \"x.png\"\n"),
+                "marker.imgae",
+                "imgae",
+                Some("image"),
             ),
             (
                 format!("{SHOT}\n[placment]\nyaw_deg = 10.0\n"),
@@ -888,5 +924,56 @@ size_m = 0.05
         let bytes = serde_json::to_vec(&doc).expect("json");
         pa_model::Model::from_slice(&bytes, "tiny.gltf", None, &Default::default())
             .expect("tiny model")
+    }
+
+    #[test]
+    fn picture_markers_parse_alone_or_with_tags_and_bad_ones_are_refused() {
+        let picture_only = SHOT.replace(
+            "[marker]\n[[marker.tags]]\nid = 0\ncenter_m = [0.0, 0.0]\nsize_m = 0.05\n",
+            "[marker]\nimage = \"floor.png\"\nwidth_m = 0.3\n",
+        );
+        assert!(!picture_only.contains("marker.tags"), "{picture_only}");
+        let (_d, p) = write(&picture_only);
+        let shot = Shot::load(&p).expect("a picture marker alone");
+        assert!(shot.marker.tags.is_empty());
+        assert_eq!(shot.marker.image.as_deref(), Some(Path::new("floor.png")));
+        assert_eq!(shot.marker.width_m, Some(0.3));
+        // Round trip: the written shot reads back the same.
+        let again = Shot::parse(&shot.to_toml().expect("toml"), &p).expect("reads back");
+        assert_eq!(again, shot);
+
+        let both = SHOT.replace(
+            "[marker]\n",
+            "[marker]\nimage = \"floor.png\"\nwidth_m = 0.3\n",
+        );
+        let (_d, p) = write(&both);
+        let shot = Shot::load(&p).expect("picture and tags");
+        assert_eq!(shot.marker.tags.len(), 1);
+        assert!(shot.marker.image.is_some());
+
+        let no_marker = SHOT.replace(
+            "[[marker.tags]]\nid = 0\ncenter_m = [0.0, 0.0]\nsize_m = 0.05\n",
+            "",
+        );
+        for (text, needle) in [
+            (no_marker, "at least one tag"),
+            (
+                picture_only.replace("width_m = 0.3\n", ""),
+                "image needs width_m",
+            ),
+            (
+                SHOT.replace("[marker]\n", "[marker]\nwidth_m = 0.3\n"),
+                "give image too",
+            ),
+            (picture_only.replace("0.3", "-1.0"), "width_m must be"),
+            (picture_only.replace("0.3", "nan"), "width_m must be"),
+        ] {
+            let (_d, p) = write(&text);
+            let e = Shot::load(&p).expect_err(needle).to_string();
+            assert!(
+                e.contains(needle) && e.contains("shot.toml"),
+                "{needle}: {e}"
+            );
+        }
     }
 }

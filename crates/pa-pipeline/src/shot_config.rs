@@ -6,11 +6,11 @@
 //! Nothing here prints: a calibration scaled to the frames comes back as a [`Scaled`] note
 //! for the caller to say.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use pa_camera::{CameraModel, Intrinsics};
 use pa_track::board::BoardTag;
-use pa_track::{Board, TagFamily};
+use pa_track::{Board, ImageTarget, TagFamily, TrackTarget};
 
 use crate::shot::{Shot, ShotError};
 
@@ -43,6 +43,31 @@ pub fn board_from_shot(shot: &Shot, shot_path: &Path) -> Result<Board, ShotError
         });
     }
     Ok(Board { family, tags })
+}
+
+/// The shot's marker picture (`[marker] image`, resolved against the shot's folder and
+/// refused when it leaves it) and its printed width in metres; `None` for a board of tags.
+pub fn marker_picture(shot: &Shot, shot_path: &Path) -> Result<Option<(PathBuf, f64)>, ShotError> {
+    match (&shot.marker.image, shot.marker.width_m) {
+        (Some(p), Some(width_m)) => Ok(Some((
+            crate::shot_hide::inside_shot_folder(shot_path, p, "[marker] image")?,
+            width_m,
+        ))),
+        _ => Ok(None),
+    }
+}
+
+/// What the tracker follows for a shot: its board, its picture, or both in one marker frame
+/// (the picture's; `board` may then be empty).
+pub fn track_target(board: Board, picture: Option<ImageTarget>) -> TrackTarget {
+    match picture {
+        None => TrackTarget::Board(board),
+        Some(image) if board.tags.is_empty() => TrackTarget::Image(Box::new(image)),
+        Some(image) => TrackTarget::ImageAndBoard {
+            image: Box::new(image),
+            board,
+        },
+    }
 }
 
 /// A calibration scaled to frames of the same aspect ratio: the note the caller says.

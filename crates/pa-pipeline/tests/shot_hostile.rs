@@ -192,9 +192,9 @@ fn the_valid_base_shot_loads() {
 fn unknown_keys_are_refused_not_dropped() {
     for (file, want) in [
         (
-            "unknown_key_marker_image.toml",
-            ":18:1: unknown key `marker.image` in [marker]: the file is shot format 1, which has \
-             no such key ([marker] knows family, tags, hide, cover)",
+            "unknown_key_marker_picture.toml",
+            ":18:1: unknown key `marker.picture` in [marker]: the file is shot format 1, which has \
+             no such key ([marker] knows family, tags, image, width_m, hide, cover)",
         ),
         (
             "misspelt_section_placment.toml",

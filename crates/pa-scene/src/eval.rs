@@ -17,7 +17,7 @@ use pa_model::{anim, skin};
 use pa_pipeline::ar::{ArFrame, ArPipeline, ArSettings, FrameTimes, StageTimings};
 use pa_pipeline::metrics::{psnr_region, ssim_region};
 use pa_render::Renderer;
-use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, Tracker, TrackerConfig};
 
 use crate::flicker::{flicker_region, Flicker, EDGE_MARGIN_PX};
 use crate::prop::{JOINT_HEAD, JOINT_JAW};
@@ -184,7 +184,7 @@ pub fn pipeline_for(
     let camera = CameraModel::pinhole(scene.intrinsics);
     let tracker = Tracker::new(
         camera,
-        TrackTarget::Board(scene.board.clone()),
+        scene.track_target()?,
         DetectorConfig::default(),
         TrackerConfig::default(),
     )?;
@@ -203,7 +203,7 @@ pub fn pipeline_for(
     }
     p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
         &scene.board,
-        Some(f64::from(crate::scene::BOARD_SHEET_M)),
+        Some(f64::from(scene.spec.set.sheet_side_m())),
     )));
     let (plate, plate_pose) = scene.clean_plate(renderer)?;
     let plate = pa_diminish::ImageRgba8::new(plate.width, plate.height, plate.rgba8)?;

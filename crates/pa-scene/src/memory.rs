@@ -6,7 +6,7 @@
 use glam::{Mat4, Vec3};
 use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_render::Renderer;
-use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, Tracker, TrackerConfig};
 
 use pa_pipeline::ar::ArFrame;
 
@@ -104,7 +104,7 @@ pub fn prime_with_scan(
 ) -> Result<usize, SceneError> {
     let mut tracker = Tracker::new(
         pa_camera::CameraModel::pinhole(scene.intrinsics),
-        TrackTarget::Board(scene.board.clone()),
+        scene.track_target()?,
         DetectorConfig::default(),
         TrackerConfig::per_still(),
     )?;

@@ -24,7 +24,7 @@ use pa_render::{
     RenderError, RenderedFrame, Renderer,
 };
 use pa_track::board::BoardTag;
-use pa_track::{Board, TagFamily};
+use pa_track::{Board, GrayImage, ImageTarget, TagFamily, TrackTarget};
 
 use crate::hide::TruthSheet;
 use crate::prop::{prop_model, value_noise, PropSpec};
@@ -156,6 +156,40 @@ pub fn set_board() -> Board {
 
 /// Side of the printed board sheet, metres.
 pub const BOARD_SHEET_M: f32 = 0.26;
+
+/// Side of the picture marker's picture, pixels ([`marker_picture`]).
+pub const MARKER_PICTURE_PX: u32 = 512;
+
+/// Printed side of the picture marker, metres: a small poster or rug (the picture must fill
+/// enough of the frame at the set's grazing 56-62 degree view for its features to be found).
+pub const MARKER_PICTURE_M: f32 = 0.4;
+
+/// The picture printed on the sheet of a picture-marker set ([`SetOptions::picture_marker`]):
+/// the image-target tests' procedural picture (blobs, edges and texture at several scales),
+/// square, printed [`MARKER_PICTURE_M`] wide, centred where the board would be. The tracker gets the same
+/// pixels the sheet shows: a user's own file.
+pub fn marker_picture() -> GrayImage {
+    pa_track::image_target::synth::natural_picture(MARKER_PICTURE_PX, MARKER_PICTURE_PX, 11)
+}
+
+/// [`marker_picture`] printed on the sheet's paper: grey levels scaled to the paper's white
+/// (245) as ink on paper.
+fn marker_picture_texture() -> CpuTexture {
+    let pic = marker_picture();
+    let rgba8 = pic
+        .data
+        .iter()
+        .flat_map(|&v| {
+            let g = (v as u32 * 245 / 255) as u8;
+            [g, g, g, 255]
+        })
+        .collect();
+    CpuTexture {
+        width: pic.width,
+        height: pic.height,
+        rgba8,
+    }
+}
 
 /// The prop's placement on the marker: prop +Y (up) -> marker -Z, prop +Z (front) -> marker +Y.
 pub fn marker_from_prop() -> Mat4 {
@@ -369,7 +403,15 @@ impl Scene {
         let model = prop_model(&spec.prop)?;
         let intrinsics =
             Intrinsics::from_fov_y(spec.fov_y_deg.to_radians(), spec.width, spec.height)?;
-        let board = set_board();
+        // A picture marker has no tags: its board is empty.
+        let board = if spec.set.picture_marker {
+            Board {
+                family: TagFamily::Tag36h11,
+                tags: Vec::new(),
+            }
+        } else {
+            set_board()
+        };
         let twin = GpuTwin::upload(renderer, &model)?;
         // A set with shadows or a second light lights its table (a shadow needs a light to
         // take away).
@@ -377,9 +419,13 @@ impl Scene {
         let table_mesh = renderer.upload_mesh(&quad(TABLE_M * 0.5, TABLE_M * 0.5, 0.0005, lit))?;
         let table_tex =
             renderer.upload_texture(&table_texture(spec.background, 2048, spec.seed as u32))?;
-        let sheet_mesh =
-            renderer.upload_mesh(&quad(BOARD_SHEET_M * 0.5, BOARD_SHEET_M * 0.5, 0.0, lit))?;
-        let sheet_tex = renderer.upload_texture(&board_texture(&board, 2080)?)?;
+        let half = 0.5 * spec.set.sheet_side_m();
+        let sheet_mesh = renderer.upload_mesh(&quad(half, half, 0.0, lit))?;
+        let sheet_tex = if spec.set.picture_marker {
+            renderer.upload_texture(&marker_picture_texture())?
+        } else {
+            renderer.upload_texture(&board_texture(&board, 2080)?)?
+        };
         let path = camera_path(&spec);
         let mut scene = Self {
             spec,
@@ -401,6 +447,18 @@ impl Scene {
             scene.truth_cover = Some(scene.cover_sheet(renderer, picture, *min_m, *max_m)?);
         }
         Ok(scene)
+    }
+
+    /// What the tracker follows on this set: the board of tags, or for a picture-marker set
+    /// ([`SetOptions::picture_marker`]) the printed picture, [`MARKER_PICTURE_M`] wide (prepared
+    /// here: keypoints at several scales, tens of milliseconds).
+    pub fn track_target(&self) -> Result<TrackTarget, SceneError> {
+        if self.spec.set.picture_marker {
+            let target = ImageTarget::new(&marker_picture(), f64::from(MARKER_PICTURE_M))?;
+            Ok(TrackTarget::Image(Box::new(target)))
+        } else {
+            Ok(TrackTarget::Board(self.board.clone()))
+        }
     }
 
     /// The animation time of camera frame `i`.

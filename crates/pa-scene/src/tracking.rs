@@ -8,7 +8,7 @@ use glam::Mat4;
 use pa_camera::CameraModel;
 use pa_pipeline::ar::gray_from_rgba;
 use pa_render::Renderer;
-use pa_track::{DetectorConfig, Pose, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, Pose, Tracker, TrackerConfig};
 
 use crate::scene::{Rng, Scene, SceneSpec};
 use crate::SceneError;
@@ -100,7 +100,7 @@ pub fn tracking_errors(
 ) -> Result<Vec<TrackingErrors>, SceneError> {
     let scene = Scene::new(spec, renderer)?;
     let camera = CameraModel::pinhole(scene.intrinsics);
-    let target = TrackTarget::Board(scene.board.clone());
+    let target = scene.track_target()?;
     let per_still_cfg = TrackerConfig::per_still();
     let mut modes = Vec::new();
     for _ in noise {

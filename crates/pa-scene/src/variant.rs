@@ -20,6 +20,9 @@
 //!   the background behind the head in the image, where the in-betweens reveal it, is then
 //!   the sheet and its back edge about 0.1 m behind the prop, and the prop's cast shadow,
 //!   instead of the table far behind.
+//! - `picture`: the marker is a printed picture (`crate::scene::marker_picture`, the sheet's
+//!   size) instead of the board of tags, tracked by its natural features
+//!   (`pa_track::TrackTarget::Image`); not part of `hard`.
 //! - `hard`: all of them (`edge` takes precedence over `covered-tag` for the placement; the
 //!   edge placement covers a tag too).
 //!
@@ -67,9 +70,20 @@ pub struct SetOptions {
     pub fill_light: bool,
     /// The camera looks down more steeply ([`crate::scene::HIGH_CAMERA_RAISE_DEG`]).
     pub high_camera: bool,
+    /// The marker is a printed picture, not tags ([`crate::scene::marker_picture`]).
+    pub picture_marker: bool,
 }
 
 impl SetOptions {
+    /// Side of the printed sheet on the table, metres: the board's, or the picture's.
+    pub fn sheet_side_m(&self) -> f32 {
+        if self.picture_marker {
+            crate::scene::MARKER_PICTURE_M
+        } else {
+            BOARD_SHEET_M
+        }
+    }
+
     /// True for the default set (nothing added).
     pub fn is_default(&self) -> bool {
         *self == Self::default()
@@ -122,7 +136,7 @@ pub struct SceneVariant {
 }
 
 /// The feature names [`parse_variant`] accepts, in the order of its help.
-pub const VARIANT_NAMES: [&str; 8] = [
+pub const VARIANT_NAMES: [&str; 9] = [
     "default",
     "shadows",
     "edge",
@@ -130,6 +144,7 @@ pub const VARIANT_NAMES: [&str; 8] = [
     "cloth",
     "fill-light",
     "high-camera",
+    "picture",
     "hard",
 ];
 
@@ -146,6 +161,7 @@ pub fn parse_variant(list: &str) -> Result<SceneVariant, SceneError> {
             "cloth" => v.background = Some(Background::Cloth),
             "fill-light" => v.set.fill_light = true,
             "high-camera" => v.set.high_camera = true,
+            "picture" => v.set.picture_marker = true,
             "hard" => {
                 v.set.shadows = true;
                 v.set.fill_light = true;

@@ -228,7 +228,27 @@ fn no_hide_is_byte_identical_and_a_cover_can_be_taken_back() {
         };
         p.set_hide(Some((Hide::Cover(Box::new(cover.clone())), sheet.clone())));
         let hidden = run(&mut p, &mut renderer);
+        // The preview's `B`: switched off, the board shows as without a hide; back on, the
+        // same cover as before.
+        p.set_hide_enabled(false);
+        assert!(p.has_hide());
+        let shown = run(&mut p, &mut renderer);
+        assert_eq!(
+            shown.rgba8,
+            plain.rgba8,
+            "{}: hide switched off",
+            path.name()
+        );
+        p.set_hide_enabled(true);
+        let again = run(&mut p, &mut renderer);
+        assert_eq!(
+            again.rgba8,
+            hidden.rgba8,
+            "{}: hide switched on",
+            path.name()
+        );
         p.set_hide(None);
+        assert!(!p.has_hide());
         let back = run(&mut p, &mut renderer);
         assert_eq!(back.rgba8, plain.rgba8, "{}: hide off = today", path.name());
         let differ = hidden

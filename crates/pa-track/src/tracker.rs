@@ -18,6 +18,7 @@ use pa_camera::CameraModel;
 
 use crate::board::{Board, BoardPose};
 use crate::image_target::ImageTarget;
+use crate::pose::estimate_planar_pose;
 use crate::{Detection, Detector, DetectorConfig, GrayImage, Pose, PoseCandidate, PoseFilter};
 use crate::{PoseFilterConfig, TagFamily, TrackError};
 
@@ -68,6 +69,14 @@ pub enum TrackTarget {
     /// A natural picture ([`ImageTarget`]): found by keypoint matching, then followed frame
     /// to frame by patch tracking from the predicted pose.
     Image(Box<ImageTarget>),
+    /// A picture and a board of tags in one marker frame, the picture's (its centre at the
+    /// origin, +X along its width, +Y down it; the tags at their board positions, as printed
+    /// together): each frame's pose is fitted to the point pairs of both, so that either
+    /// alone keeps the marker tracked (a hand over the tags, the picture half out of frame).
+    ImageAndBoard {
+        image: Box<ImageTarget>,
+        board: Board,
+    },
 }
 
 impl TrackTarget {
@@ -80,6 +89,7 @@ impl TrackTarget {
                 family: TagFamily::Tag36h11,
                 tags: Vec::new(),
             },
+            TrackTarget::ImageAndBoard { board, .. } => board.clone(),
         }
     }
 }
@@ -189,7 +199,7 @@ impl Tracker {
             .map_err(|e| TrackError::Config(e.to_string()))?;
         let board = target.board();
         let image = match target {
-            TrackTarget::Image(i) => Some(i),
+            TrackTarget::Image(i) | TrackTarget::ImageAndBoard { image: i, .. } => Some(i),
             _ => None,
         };
         if board.tags.is_empty() && image.is_none() {
@@ -253,10 +263,18 @@ impl Tracker {
         if let Some(image) = self.image.take() {
             let out = self.update_image(&image, frame, time_s);
             self.image = Some(image);
-            return Ok(out);
+            return out;
         }
-        let mut used_roi = false;
-        let mut detections = None;
+        let (detections, used_roi) = self.detect_tags(frame)?;
+        let mut out = self.update_with_detections(detections, time_s)?;
+        out.used_roi = used_roi;
+        Ok(out)
+    }
+
+    /// This frame's tag detections: around the last position first (when tracking and
+    /// [`TrackerConfig::use_roi`]), the whole frame when that finds none of the board's tags.
+    /// The flag says whether the region of interest sufficed.
+    fn detect_tags(&mut self, frame: &GrayImage) -> Result<(Vec<Detection>, bool), TrackError> {
         if self.config.use_roi && self.state != TrackState::Searching {
             if let Some([x0, y0, x1, y1]) = self.roi {
                 let w = frame.width as f64;
@@ -272,19 +290,31 @@ impl Tracker {
                         (y1 - y0).ceil() as u32,
                     )?;
                     if d.iter().any(|d| self.board.contains(d)) {
-                        used_roi = true;
-                        detections = Some(d);
+                        return Ok((d, true));
                     }
                 }
             }
         }
-        let detections = match detections {
-            Some(d) => d,
-            None => self.detector.detect(frame)?,
-        };
-        let mut out = self.update_with_detections(detections, time_s)?;
-        out.used_roi = used_roi;
-        Ok(out)
+        Ok((self.detector.detect(frame)?, false))
+    }
+
+    /// The board's pose from `detections` (`None` when too few of its tags, or degenerate
+    /// corners such as a sliver of a tag: not seen).
+    fn board_pose(
+        &self,
+        detections: &[Detection],
+        time_s: f64,
+    ) -> Result<Option<BoardPose>, TrackError> {
+        // The pose expected on this frame decides between two disagreeing tags.
+        let prior = self.filter.predict(time_s).or(self.last_pose);
+        match self
+            .board
+            .estimate_pose_robust(&self.camera, detections, prior.as_ref())
+        {
+            Ok(p) => Ok(p),
+            Err(TrackError::Pose(_)) => Ok(None),
+            Err(e) => Err(e),
+        }
     }
 
     /// Runs the state machine on detections made elsewhere.
@@ -293,18 +323,7 @@ impl Tracker {
         detections: Vec<Detection>,
         time_s: f64,
     ) -> Result<TrackOutput, TrackError> {
-        // The pose expected on this frame decides between two disagreeing tags.
-        let prior = self.filter.predict(time_s).or(self.last_pose);
-        let board_pose: Option<BoardPose> =
-            match self
-                .board
-                .estimate_pose_robust(&self.camera, &detections, prior.as_ref())
-            {
-                Ok(p) => p,
-                // Degenerate corners (e.g. a sliver of a tag): treat as not seen.
-                Err(TrackError::Pose(_)) => None,
-                Err(e) => return Err(e),
-            };
+        let board_pose = self.board_pose(&detections, time_s)?;
         let observed = board_pose.as_ref().and_then(|bp| {
             let c = match &self.last_pose {
                 Some(prev) => bp.estimate.choose_consistent(prev),
@@ -316,26 +335,54 @@ impl Tracker {
         Ok(self.step(observed, detections, time_s))
     }
 
-    /// One frame of a picture target: tracking from the predicted pose, else detection.
-    fn update_image(&mut self, image: &ImageTarget, frame: &GrayImage, time_s: f64) -> TrackOutput {
+    /// One frame of a picture target: tracking from the predicted pose, else detection; with
+    /// tags too ([`TrackTarget::ImageAndBoard`]), the board's point pairs join the picture's
+    /// in one fit.
+    fn update_image(
+        &mut self,
+        image: &ImageTarget,
+        frame: &GrayImage,
+        time_s: f64,
+    ) -> Result<TrackOutput, TrackError> {
         let prior = match self.state {
             TrackState::Searching => None,
             _ => self.filter.predict(time_s).or(self.last_pose),
         };
         let obs = image.locate(frame, &self.camera, prior.as_ref());
         let tracked = obs.as_ref().is_some_and(|o| o.tracked);
-        let observed = obs.and_then(|o| {
+        let (detections, board_pose) = if self.board.tags.is_empty() {
+            (Vec::new(), None)
+        } else {
+            let (d, _) = self.detect_tags(frame)?;
+            let bp = self.board_pose(&d, time_s)?;
+            (d, bp)
+        };
+        let joint = match (obs, board_pose) {
+            (Some(o), Some(bp)) => {
+                let mut pairs = o.correspondences;
+                pairs.extend(bp.correspondences);
+                let (obj, img): (Vec<glam::DVec3>, Vec<DVec2>) = pairs.iter().copied().unzip();
+                // Both sightings agree by construction of one marker frame; a failed joint fit
+                // (degenerate, which the parts were not) falls back to the picture's own.
+                let estimate = estimate_planar_pose(&self.camera, &obj, &img).unwrap_or(o.estimate);
+                Some((estimate, pairs, bp.used_ids))
+            }
+            (Some(o), None) => Some((o.estimate, o.correspondences, Vec::new())),
+            (None, Some(bp)) => Some((bp.estimate, bp.correspondences, bp.used_ids)),
+            (None, None) => None,
+        };
+        let observed = joint.and_then(|(estimate, pairs, ids)| {
             let c = match &self.last_pose {
-                Some(prev) => o.estimate.choose_consistent(prev),
-                None => o.estimate.best,
+                Some(prev) => estimate.choose_consistent(prev),
+                None => estimate.best,
             };
-            (c.rms_px <= self.config.max_rms_px).then_some((c, o.correspondences, Vec::new()))
+            (c.rms_px <= self.config.max_rms_px).then_some((c, pairs, ids))
         });
-        let mut out = self.step(observed, Vec::new(), time_s);
+        let mut out = self.step(observed, detections, time_s);
         out.used_roi = tracked && out.raw.is_some();
         let corner_pose = out.raw.map(|c| c.pose).or(out.pose);
         out.target_corners_px = corner_pose.and_then(|p| image.corners_px(&self.camera, &p));
-        out
+        Ok(out)
     }
 
     /// The state machine on this frame's accepted pose (with its point pairs and tag ids).

@@ -11,7 +11,9 @@ use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{bin, command, files, fresh_root, lock, log, run, stderr, write_prop_and_shot};
+use common::{
+    bin, command, files, fresh_root, lock, log, pose_delta, run, stderr, write_prop_and_shot,
+};
 use pa_scene::{Scene, SceneSpec};
 use pa_video::{Fps, Mp4Writer, Mp4WriterOptions, RateControl, VideoReader};
 
@@ -143,18 +145,6 @@ fn pose(v: &serde_json::Value) -> Option<glam::DMat4> {
         .map(|x| x.as_f64().expect("number"))
         .collect();
     (a.len() == 16).then(|| glam::DMat4::from_cols_slice(&a))
-}
-
-/// (translation difference mm, rotation difference degrees) of two camera_from_marker.
-fn pose_delta(a: &glam::DMat4, b: &glam::DMat4) -> (f64, f64) {
-    let t = (a.w_axis.truncate() - b.w_axis.truncate()).length() * 1e3;
-    // The angle of the rotation between them: |Ra - Rb|_F = 2 sqrt(2) sin(angle / 2) (well
-    // conditioned for small angles, unlike the trace's acos).
-    let d = glam::DMat3::from_mat4(*a) - glam::DMat3::from_mat4(*b);
-    let f =
-        (d.x_axis.length_squared() + d.y_axis.length_squared() + d.z_axis.length_squared()).sqrt();
-    let angle = 2.0 * (f / (2.0 * 2f64.sqrt())).clamp(0.0, 1.0).asin();
-    (t, angle.to_degrees())
 }
 
 #[test]

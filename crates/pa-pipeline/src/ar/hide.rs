@@ -210,6 +210,8 @@ pub(super) struct HideState {
     pub sheet: BoardSheet,
     /// The last light fitted (kept when a frame shows no paper).
     pub shading: Option<SheetShading>,
+    /// False while the preview shows the board ([`ArPipeline::set_hide_enabled`]).
+    pub enabled: bool,
 }
 
 impl ArPipeline {
@@ -219,7 +221,21 @@ impl ArPipeline {
             hide,
             sheet,
             shading: None,
+            enabled: true,
         });
+    }
+
+    /// Whether a hiding is set ([`Self::set_hide`]), on or off.
+    pub fn has_hide(&self) -> bool {
+        self.hide.is_some()
+    }
+
+    /// Switches the hiding set by [`Self::set_hide`] off (the board shows) or back on, keeping
+    /// it (the preview's `B`).
+    pub fn set_hide_enabled(&mut self, on: bool) {
+        if let Some(h) = &mut self.hide {
+            h.enabled = on;
+        }
     }
 
     /// Replaces the sheet in the diminished `background` (a no-op without [`Hide`]).
@@ -228,7 +244,7 @@ impl ArPipeline {
         view: &FrameView<'_>,
         background: &mut ImageRgba8,
     ) -> Result<(), ArError> {
-        let Some(state) = &mut self.hide else {
+        let Some(state) = self.hide.as_mut().filter(|h| h.enabled) else {
             return Ok(());
         };
         let (w, h) = (view.width, view.height);

@@ -134,7 +134,11 @@ fn view_pose(i: usize, n: usize, spread_deg: f32) -> Mat4 {
 /// `n` tracked views spread over `spread_deg` of azimuth (with the prop, or without it).
 fn views(set: &mut Set, n: usize, spread_deg: f32, with_prop: bool) -> Vec<RegisterView> {
     let camera = CameraModel::pinhole(set.scene.intrinsics);
-    let mut tracker = track::ViewTracker::new(camera, set.scene.board.clone()).expect("tracker");
+    let mut tracker = track::ViewTracker::new(
+        camera,
+        pa_track::TrackTarget::Board(set.scene.board.clone()),
+    )
+    .expect("tracker");
     let mut out = Vec::new();
     for i in 0..n {
         let pose = view_pose(i, n, spread_deg);

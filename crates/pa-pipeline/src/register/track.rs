@@ -2,7 +2,7 @@
 //! one sighting, no filtering), untracked frames counted and left out.
 
 use pa_camera::CameraModel;
-use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 use super::{RegisterError, RegisterView};
 
@@ -15,15 +15,11 @@ pub struct ViewTracker {
 }
 
 impl ViewTracker {
-    /// A tracker of `board` seen by `camera` that treats every frame as a new sequence.
-    pub fn new(camera: CameraModel, board: Board) -> Result<Self, RegisterError> {
+    /// A tracker of `target` (a board, a picture or both) seen by `camera` that treats every
+    /// frame as a new sequence.
+    pub fn new(camera: CameraModel, target: TrackTarget) -> Result<Self, RegisterError> {
         let config = TrackerConfig::per_still();
-        let tracker = Tracker::new(
-            camera,
-            TrackTarget::Board(board),
-            DetectorConfig::default(),
-            config,
-        )?;
+        let tracker = Tracker::new(camera, target, DetectorConfig::default(), config)?;
         Ok(Self {
             tracker,
             camera,

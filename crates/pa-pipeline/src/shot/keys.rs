@@ -2,7 +2,7 @@
 //!
 //! Before the shot is read into its types, the TOML document is walked with the spans of its
 //! keys, and every key must be one that this version of the format knows, table by table
-//! ([`KNOWN_KEYS`]). A misspelt or newer key (`[placment]`, `yaw_degs`, `[marker] image`) is
+//! ([`KNOWN_KEYS`]). A misspelt or newer key (`[placment]`, `yaw_degs`, `[marker] picture`) is
 //! refused with its dotted name, its line and column, and the format the file claims (the
 //! optional top-level `format = N`; a file without it is format 1). A file written for a
 //! newer format than [`SHOT_FORMAT`] is refused as such, before its keys are looked at.
@@ -46,7 +46,10 @@ pub const KNOWN_KEYS: &[(&str, &[&str])] = &[
     ("scan", &["input"]),
     ("texture", &["relight", "feather"]),
     ("camera", &["calibration", "fov_y_deg"]),
-    ("marker", &["family", "tags", "hide", "cover"]),
+    (
+        "marker",
+        &["family", "tags", "image", "width_m", "hide", "cover"],
+    ),
     ("marker.tags", &["id", "center_m", "size_m"]),
     (
         "placement",

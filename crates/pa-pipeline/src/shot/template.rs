@@ -117,6 +117,11 @@ impl NewShot {
         line("# like it); hide = \"plate\" the table without the board (see the README).");
         line("# hide = \"cover\"");
         line("# cover = \"rug.png\"");
+        line("# A printed picture as the marker, alone (remove the tags) or with the tags: the");
+        line("# marker frame is then the picture's (origin at its centre, +X along its width, +Y");
+        line("# down it); check it first with propsalive marker --check floor.png.");
+        line("# image = \"floor.png\"");
+        line("# width_m = 0.3");
         for tag in &p.board.tags {
             line("[[marker.tags]]");
             line(&format!("id = {}", tag.id));

@@ -28,6 +28,19 @@ impl Rng {
     }
 }
 
+/// [`camera_720p`] as the picture renderer of `image_target::synth` takes it.
+pub fn pinhole_720p() -> pa_track::image_target::synth::Pinhole {
+    let c = camera_720p().intrinsics;
+    pa_track::image_target::synth::Pinhole {
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+        width: c.width,
+        height: c.height,
+    }
+}
+
 pub fn camera_720p() -> CameraModel {
     CameraModel::pinhole(Intrinsics {
         fx: 1000.0,

@@ -130,6 +130,11 @@ pub enum Method {
     Memory,
     /// Relit with feathered seams and the texture memory on.
     RelitMemory,
+    /// Ours with the board hidden under a cover picture (`[marker] hide = "cover"`).
+    HideCover,
+    /// Ours on the `picture` set: a printed picture as the marker, tracked by its natural
+    /// features (frame to frame after the first detection).
+    Picture,
 }
 
 impl Method {
@@ -149,8 +154,13 @@ impl Method {
                 look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
                 ..ArSettings::ours()
             },
-            Method::Memory => ArSettings::ours(),
+            Method::Memory | Method::HideCover | Method::Picture => ArSettings::ours(),
         }
+    }
+
+    /// The board hidden under a cover, if this method hides it.
+    fn hide(self) -> Option<pa_scene::HideKind> {
+        matches!(self, Method::HideCover).then_some(pa_scene::HideKind::Cover)
     }
 
     /// Whether the texture memory is on ([`ArPipeline::set_texture_memory`]).
@@ -169,6 +179,8 @@ impl Method {
             Method::RelitMemory => {
                 "ours, relit with feathered seams and the texture memory (live + visibility, ray fill)"
             }
+            Method::HideCover => "ours with the board hidden under a cover picture",
+            Method::Picture => "ours on a picture marker (natural-feature tracking)",
         }
     }
 }
@@ -434,6 +446,10 @@ fn run_config(
         frames: total.max(SceneSpec::default().frames),
         prop: PropSpec::with_vertex_count(config.vertices),
         props: config.props,
+        set: pa_scene::SetOptions {
+            picture_marker: plan.method == Method::Picture,
+            ..Default::default()
+        },
         ..SceneSpec::default()
     };
     let bar = ProgressBar::new(u64::from(total) * 2 + u64::from(plan.frames));
@@ -463,6 +479,9 @@ fn run_config(
     let mut pipe = pipeline_for(&scene, renderer, settings).map_err(anyhow::Error::msg)?;
     pipe.set_render_path(config.path);
     pipe.set_texture_memory(plan.method.memory());
+    if let Some(kind) = plan.method.hide() {
+        pa_scene::hide::apply(&scene, renderer, &mut pipe, kind).map_err(anyhow::Error::msg)?;
+    }
 
     bar.set_message("warming up");
     for f in &frames[..plan.warmup as usize] {

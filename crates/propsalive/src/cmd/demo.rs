@@ -30,7 +30,8 @@ pub struct Args {
     #[arg(long, default_value_t = 49)]
     pub frames: u32,
     /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
-    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them).
+    /// `cloth`, `fill-light`, `high-camera`, `picture` (a printed picture as the
+    /// marker instead of tags), or `hard` (all of them but `picture`).
     #[arg(long, default_value = "default")]
     pub scene: String,
     /// Hide the board in the output: cover (a picture laid over the sheet, lit like it) or

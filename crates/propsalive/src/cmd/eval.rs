@@ -45,7 +45,8 @@ pub struct Args {
     #[command(flatten)]
     pub set: set::SetArgs,
     /// The set: `default`, or a comma-separated list of `shadows`, `edge`, `covered-tag`,
-    /// `cloth`, `fill-light`, `high-camera`, or `hard` (all of them). A variant that names a
+    /// `cloth`, `fill-light`, `high-camera`, `picture` (a printed picture as the
+    /// marker instead of tags), or `hard` (all of them but `picture`). A variant that names a
     /// table (`cloth`) runs on that table only; otherwise on wood and plain.
     #[arg(long, default_value = "default")]
     pub scene: String,

@@ -92,6 +92,12 @@ pub struct Output {
 /// The sheet of a shot: its board and the footprints of its key poses.
 fn shot_sheet(args: &Args, shot_path: &Path) -> Result<Sheet> {
     let shot = Shot::load(shot_path)?;
+    if shot.marker.tags.is_empty() {
+        bail!(
+            "{}: the marker is a picture without tags: print the picture itself with `propsalive marker --image PICTURE --width-mm W --out STEM`",
+            shot_path.display()
+        );
+    }
     let model_path = Shot::resolve(shot_path, &shot.model);
     let model = pa_model::Model::load(&model_path)?;
     let anim = shot.check_model(shot_path, &model)?;

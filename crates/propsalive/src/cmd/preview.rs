@@ -122,7 +122,8 @@ pub struct Args {
     /// the fills, `S` toggles shadows.
     #[command(flatten)]
     pub diminish: crate::cmd::run::diminish::DiminishArgs,
-    /// What replaces the board (overriding the shot's `[marker] hide`; a shot only).
+    /// What replaces the board (overriding the shot's `[marker] hide`; a shot only); `B` shows
+    /// the board again and hides it back.
     #[command(flatten)]
     pub hide: crate::cmd::run::hide::HideArgs,
 }
@@ -209,6 +210,16 @@ impl Preview {
             Action::ToggleShadows => {
                 let on = if self.state.shadows { "on" } else { "off" };
                 self.toast(format!("shadows {on}"));
+            }
+            Action::ToggleHide => {
+                let msg = if !self.pipeline.has_hide() {
+                    "no hiding set: the shot's [marker] hide, or --hide cover|plate"
+                } else if self.state.hide_board {
+                    "board hidden"
+                } else {
+                    "board shown"
+                };
+                self.toast(msg.to_string());
             }
             _ => {}
         }
@@ -481,6 +492,7 @@ impl Preview {
             Fill::None
         };
         self.pipeline.set_shadows(self.state.shadows);
+        self.pipeline.set_hide_enabled(self.state.hide_board);
         let anim_time_s = self.state.anim_frame as f32 / self.fps;
         let key_time_s = want.key_frame as f32 / self.fps;
         // The tracker policy (`pa_video::source`): reset before each still, kept across video

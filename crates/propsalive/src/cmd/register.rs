@@ -129,7 +129,8 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(note) = &camera.scaled {
         errln!("{note}");
     }
-    let mut tracker = ViewTracker::new(camera.value, board)?;
+    let (target, _) = super::run::marker::track_target(&shot, &args.shot, &board)?;
+    let mut tracker = ViewTracker::new(camera.value, target)?;
     let total = frames.len();
     let mut views: Vec<RegisterView> = Vec::new();
     for (name, fw, fh, rgba) in frames {

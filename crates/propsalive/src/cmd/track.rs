@@ -263,7 +263,9 @@ pub fn resolve(args: &Args) -> Result<Config> {
     let layout = pa_track::family_layout(family)?;
     let max_id = match &target {
         TrackTarget::Tag { id, .. } => *id,
-        TrackTarget::Board(b) => b.tags.iter().map(|t| t.id).max().unwrap_or(0),
+        TrackTarget::Board(b) | TrackTarget::ImageAndBoard { board: b, .. } => {
+            b.tags.iter().map(|t| t.id).max().unwrap_or(0)
+        }
         TrackTarget::Image(_) => 0,
     };
     if max_id >= layout.id_count {

@@ -190,3 +190,15 @@ pub fn generate_take(prefix: &str, stills: u32, width: u32, height: u32) -> Opti
         reference,
     })
 }
+
+/// (translation difference mm, rotation difference degrees) of two camera_from_marker.
+pub fn pose_delta(a: &glam::DMat4, b: &glam::DMat4) -> (f64, f64) {
+    let t = (a.w_axis.truncate() - b.w_axis.truncate()).length() * 1e3;
+    // The angle of the rotation between them: |Ra - Rb|_F = 2 sqrt(2) sin(angle / 2) (well
+    // conditioned for small angles, unlike the trace's acos).
+    let d = glam::DMat3::from_mat4(*a) - glam::DMat3::from_mat4(*b);
+    let f =
+        (d.x_axis.length_squared() + d.y_axis.length_squared() + d.z_axis.length_squared()).sqrt();
+    let angle = 2.0 * (f / (2.0 * 2f64.sqrt())).clamp(0.0, 1.0).asin();
+    (t, angle.to_degrees())
+}

@@ -12,7 +12,7 @@ use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_pipeline::shot::Shot;
 use pa_pipeline::shot_config;
 use pa_render::Renderer;
-use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, Tracker, TrackerConfig};
 
 use super::source::{CameraSource, FrameSource, SceneSource, StillsSource, VideoSource};
 use super::state::{KeyPose, PreviewState};
@@ -204,12 +204,18 @@ pub fn setup_shot(
     }
     let camera = camera.value;
     let board = shot_config::board_from_shot(&shot, shot_path)?;
-    let axes_len_m = board
+    run::marker::check_hide(&board, hide.hide)?;
+    let (target, _) = run::marker::track_target(&shot, shot_path, &board)?;
+    // The axes: 1.5 tag sides, or a fifth of a picture marker's width.
+    let axes_len_m = match board
         .tags
         .iter()
         .map(|t| t.size_m as f32)
         .fold(0.0, f32::max)
-        * 1.5;
+    {
+        s if s > 0.0 => 1.5 * s,
+        _ => shot.marker.width_m.map_or(0.05, |w| 0.2 * w as f32),
+    };
     let model_path = Shot::resolve(shot_path, &shot.model);
     let model = pa_model::Model::load(&model_path)
         .with_context(|| format!("loading the model {}", model_path.display()))?;
@@ -228,19 +234,13 @@ pub fn setup_shot(
     let board_for_plate = board.clone();
     let tracker = Tracker::new(
         camera,
-        TrackTarget::Board(board),
+        target.clone(),
         DetectorConfig::default(),
         tracker_cfg,
     )?;
     let last = last_frame(&model, animation, shot.fps);
     let plate = match diminish::plate_file(&d, first_still.as_deref())? {
-        Some(p) => Some(diminish::load_plate(
-            &p,
-            camera,
-            &board_for_plate,
-            width,
-            height,
-        )?),
+        Some(p) => Some(diminish::load_plate(&p, camera, &target, width, height)?),
         None => None,
     };
     let has_plate = plate.is_some();

@@ -12,7 +12,7 @@ use pa_diminish::ImageRgba8;
 use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_pipeline::shot::Shot;
 use pa_pipeline::shot_diminish::{resolve, DiminishConfig, DiminishOverrides, PlateSource};
-use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{DetectorConfig, TrackTarget, Tracker, TrackerConfig};
 
 /// The diminish flags (each overrides the shot's `[diminish]`).
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -100,12 +100,12 @@ pub fn plate_frames(d: &DiminishConfig) -> usize {
     }
 }
 
-/// Reads the clean plate still and tracks the board in it for the pose it was taken from.
-/// The plate must have the take's size and show the board.
+/// Reads the clean plate still and tracks the marker in it for the pose it was taken from.
+/// The plate must have the take's size and show the marker.
 pub fn load_plate(
     path: &Path,
     camera: CameraModel,
-    board: &Board,
+    target: &TrackTarget,
     width: u32,
     height: u32,
 ) -> Result<(ImageRgba8, glam::Mat4)> {
@@ -122,7 +122,7 @@ pub fn load_plate(
     }
     let mut tracker = Tracker::new(
         camera,
-        TrackTarget::Board(board.clone()),
+        target.clone(),
         DetectorConfig::default(),
         TrackerConfig::per_still(),
     )?;
@@ -130,7 +130,7 @@ pub fn load_plate(
     let out = tracker.update(&gray, 0.0)?;
     let Some(pose) = out.pose else {
         bail!(
-            "clean plate {}: the marker board is not found in it (the plate needs the board in view to be placed)",
+            "clean plate {}: the marker is not found in it (the plate needs the marker in view to be placed)",
             path.display()
         );
     };

@@ -83,12 +83,14 @@ pub fn apply(
     plate_pose: Option<glam::Mat4>,
     size: (u32, u32),
 ) -> Result<()> {
-    let sheet = BoardSheet::from_board(board, SHEET_MARGIN_M)?;
     let hide = match (h.hide, &h.cover) {
-        (HideName::None, _) => None,
+        (HideName::None, _) => {
+            pipeline.set_hide(None);
+            return Ok(());
+        }
         (HideName::Cover, Some(c)) => {
             let img = read_cover(c)?;
-            Some(Hide::Cover(Box::new(CoverImage::new(&img)?)))
+            Hide::Cover(Box::new(CoverImage::new(&img)?))
         }
         (HideName::Plate, Some(c)) => {
             let Some(pose) = plate_pose else {
@@ -105,14 +107,15 @@ pub fn apply(
                     size.1
                 );
             }
-            Some(Hide::Plate {
+            Hide::Plate {
                 plate,
                 camera_from_marker: pose,
-            })
+            }
         }
         (_, None) => bail!("--hide {} needs --cover FILE", h.hide.name()),
     };
-    pipeline.set_hide(hide.map(|h| (h, sheet)));
+    let sheet = BoardSheet::from_board(board, SHEET_MARGIN_M)?;
+    pipeline.set_hide(Some((hide, sheet)));
     Ok(())
 }
 

@@ -76,6 +76,7 @@ use pa_video::{Fps, Mp4Writer};
 
 pub mod diminish;
 pub mod hide;
+pub mod marker;
 mod scan;
 
 #[derive(clap::Args)]
@@ -171,6 +172,8 @@ struct Config {
     height: u32,
     camera: CameraModel,
     board: Board,
+    /// What the tracker follows: the board, the shot's picture, or both.
+    target: TrackTarget,
     model: pa_model::Model,
     animation: usize,
     marker_from_prop: glam::Mat4,
@@ -268,6 +271,8 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
     }
     let camera = camera.value;
     let board = shot_config::board_from_shot(&shot, &args.shot)?;
+    marker::check_hide(&board, hide_cfg.hide)?;
+    let (target, picture_identity) = marker::track_target(&shot, &args.shot, &board)?;
     let model_path = Shot::resolve(&args.shot, &shot.model);
     let model = pa_model::Model::load(&model_path)
         .with_context(|| format!("loading the model {}", model_path.display()))?;
@@ -285,6 +290,7 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
         height,
         camera,
         board,
+        target,
         model,
         animation,
         marker_from_prop: shot.placement.marker_from_prop(),
@@ -305,6 +311,10 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
             }
             if let Some(s) = &scan_identity {
                 text.extend_from_slice(s.as_bytes());
+            }
+            // The marker picture's content (a shot without one hashes as before).
+            if let Some(p) = &picture_identity {
+                text.extend_from_slice(p.as_bytes());
             }
             hash_hex(&text)
         },
@@ -384,7 +394,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
             let tracker_cfg = TrackerConfig::per_still();
             let tracker = Tracker::new(
                 cfg.camera,
-                TrackTarget::Board(cfg.board.clone()),
+                cfg.target.clone(),
                 DetectorConfig::default(),
                 tracker_cfg,
             )?;
@@ -399,7 +409,11 @@ impl FrameProcessor for PipelineProcessor<'_> {
             )?;
             let plate = match &cfg.plate_file {
                 Some(p) => Some(diminish::load_plate(
-                    p, cfg.camera, &cfg.board, cfg.width, cfg.height,
+                    p,
+                    cfg.camera,
+                    &cfg.target,
+                    cfg.width,
+                    cfg.height,
                 )?),
                 None => None,
             };
