@@ -265,26 +265,34 @@ pub fn fit_shading(
     let (w, h) = frame.size();
     let data = frame.as_slice();
     let r = coords.rect;
-    let mut samples: Vec<([f32; 2], [f32; 3])> = Vec::new();
-    for y in r.y..r.bottom().min(h) {
-        for x in r.x..r.right().min(w) {
-            let Some(p) = coords.at(x as i64, y as i64) else {
-                continue;
-            };
-            if !paper.contains(p) {
-                continue;
+    // Rows in parallel, concatenated in row order: the same samples in the same order as a
+    // serial scan, so the fit does not depend on the thread count.
+    use rayon::prelude::*;
+    let samples: Vec<([f32; 2], [f32; 3])> = (r.y..r.bottom().min(h))
+        .into_par_iter()
+        .map(|y| {
+            let mut row = Vec::new();
+            for x in r.x..r.right().min(w) {
+                let Some(p) = coords.at(x as i64, y as i64) else {
+                    continue;
+                };
+                if !paper.contains(p) {
+                    continue;
+                }
+                let i = (y * w + x) as usize * 4;
+                row.push((
+                    p,
+                    [
+                        lut[data[i] as usize],
+                        lut[data[i + 1] as usize],
+                        lut[data[i + 2] as usize],
+                    ],
+                ));
             }
-            let i = (y * w + x) as usize * 4;
-            samples.push((
-                p,
-                [
-                    lut[data[i] as usize],
-                    lut[data[i + 1] as usize],
-                    lut[data[i + 2] as usize],
-                ],
-            ));
-        }
-    }
+            row
+        })
+        .flatten()
+        .collect();
     if samples.is_empty() {
         return None;
     }
@@ -300,8 +308,9 @@ pub fn fit_shading(
         })
         .collect();
     let mut abs: Vec<f32> = resid.iter().map(|r| r.abs()).collect();
-    abs.sort_by(f32::total_cmp);
-    let mad = abs[abs.len() / 2];
+    // The median by selection (the same element a full sort puts there).
+    let mid = abs.len() / 2;
+    let (_, &mut mad, _) = abs.select_nth_unstable_by(mid, f32::total_cmp);
     let limit = (3.0 * 1.4826 * mad).max(0.01);
     let kept: Vec<usize> = (0..samples.len())
         .filter(|&i| resid[i].abs() <= limit)
@@ -400,30 +409,41 @@ pub fn paste_cover(
     let (cw, ch) = cover.size();
     let r = coords.rect;
     let data = frame.as_mut_slice();
-    let mut pasted = 0;
-    for y in r.y..r.bottom().min(h) {
-        for x in r.x..r.right().min(w) {
-            let Some((p, dx, dy)) = coords.with_jacobian(x as i64, y as i64) else {
-                continue;
-            };
-            let cov = coverage(p, dx, dy);
-            if cov <= 0.0 {
-                continue;
+    // Rows in parallel: each pixel depends on the coordinates and the cover only, so the
+    // result is the same for any thread count.
+    use rayon::prelude::*;
+    let (y0, y1) = (r.y.min(h), r.bottom().min(h));
+    let pasted = data
+        .par_chunks_mut(w as usize * 4)
+        .enumerate()
+        .skip(y0 as usize)
+        .take((y1 - y0) as usize)
+        .map(|(y, row)| {
+            let mut pasted = 0usize;
+            for x in r.x..r.right().min(w) {
+                let Some((p, dx, dy)) = coords.with_jacobian(x as i64, y as i64) else {
+                    continue;
+                };
+                let cov = coverage(p, dx, dy);
+                if cov <= 0.0 {
+                    continue;
+                }
+                let (s, t) = (p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0));
+                let fx = ((dx[0] * cw as f32).powi(2) + (dx[1] * ch as f32).powi(2)).sqrt();
+                let fy = ((dy[0] * cw as f32).powi(2) + (dy[1] * ch as f32).powi(2)).sqrt();
+                let c = cover.sample(s, t, fx.max(fy));
+                let light = shading.at(s, t);
+                let i = x as usize * 4;
+                for k in 0..3 {
+                    let bg = lut[row[i + k] as usize];
+                    let v = c[k] * light[k];
+                    row[i + k] = encode_linear(cov * v + (1.0 - cov) * bg);
+                }
+                pasted += 1;
             }
-            let (s, t) = (p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0));
-            let fx = ((dx[0] * cw as f32).powi(2) + (dx[1] * ch as f32).powi(2)).sqrt();
-            let fy = ((dy[0] * cw as f32).powi(2) + (dy[1] * ch as f32).powi(2)).sqrt();
-            let c = cover.sample(s, t, fx.max(fy));
-            let light = shading.at(s, t);
-            let i = (y * w + x) as usize * 4;
-            for k in 0..3 {
-                let bg = lut[data[i + k] as usize];
-                let v = c[k] * light[k];
-                data[i + k] = encode_linear(cov * v + (1.0 - cov) * bg);
-            }
-            pasted += 1;
-        }
-    }
+            pasted
+        })
+        .sum();
     Ok(CoverStats {
         pasted,
         shading: *shading,
