@@ -54,6 +54,8 @@ const FRAME_LEVELS: usize = 4;
 /// Oblique views simulated for matching at grazing angles: (direction deg, tilt), the tilt
 /// being `1 / cos(viewing angle)` (2: 60 degrees).
 pub const SIMULATED_VIEWS: [(f32, f32); 4] = [(0.0, 2.0), (45.0, 2.0), (90.0, 2.0), (135.0, 2.0)];
+/// Keypoints each level of a simulated view keeps at least.
+const SIMULATED_MIN_PER_LEVEL: usize = 100;
 /// Points used for frame-to-frame tracking.
 const MAX_TRACK_POINTS: usize = 400;
 /// Points of the coarse (wide search) tracking pass.
@@ -122,17 +124,21 @@ pub(crate) fn picture_features(
         height: work.height as u32,
         data: work.data.clone(),
     };
-    let pyr = features::pyramid(&img, PICTURE_LEVELS);
+    let (pyr, smooth) = features::pyramid_smoothed(&img, PICTURE_LEVELS);
     let cfg = FeatureConfig {
         fast_threshold: 15,
         max_keypoints: 1500,
         cell_px: 24,
+        min_per_level: 0,
     };
-    let (mut k, mut d) = features::detect_and_describe(&pyr, &cfg);
+    let (mut k, mut d) = features::detect_and_describe_smoothed(&pyr, &smooth, &cfg);
     let direct = k.len();
     if simulate {
+        // At least `SIMULATED_MIN_PER_LEVEL` per level: the coarse levels of a simulated view
+        // are what a distant view at a grazing angle matches.
         let cfg = FeatureConfig {
             max_keypoints: 500,
+            min_per_level: SIMULATED_MIN_PER_LEVEL,
             ..cfg
         };
         for &(phi_deg, tilt) in &SIMULATED_VIEWS {
@@ -355,13 +361,14 @@ impl ImageTarget {
 
     /// Full detection: features, matching, RANSAC homography, pose, patch refinement.
     pub fn detect(&self, frame: &GrayImage, camera: &CameraModel) -> Option<ImageObservation> {
-        let pyr = features::pyramid(frame, FRAME_LEVELS);
+        let (pyr, smooth) = features::pyramid_smoothed(frame, FRAME_LEVELS);
         let cfg = FeatureConfig {
             fast_threshold: 18,
             max_keypoints: 2500,
             cell_px: 32,
+            min_per_level: 0,
         };
-        let (fk, fd) = features::detect_and_describe(&pyr, &cfg);
+        let (fk, fd) = features::detect_and_describe_smoothed(&pyr, &smooth, &cfg);
         let m = matching::match_descriptors(&fk, &fd, &self.descriptors, &Default::default());
         let src: Vec<DVec2> = m
             .iter()
