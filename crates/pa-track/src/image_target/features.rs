@@ -399,15 +399,20 @@ fn fast_row(l: &Level, y: usize, t: u8) -> Vec<(i32, f32)> {
         &l.data[yy * w..(yy + 1) * w]
     };
     let rows: [&[u8]; 7] = [row(-3), row(-2), row(-1), row(0), row(1), row(2), row(3)];
-    // Any 9-arc holds two of the four compass points: a branch-free test over the row.
+    // Any 9-arc holds two of the four compass points (0, 4, 8, 12) and two of the four
+    // diagonal ones (2, 6, 10, 14): a branch-free test over the row first.
     let (c, up, dn) = (&rows[3][b..b + n], &rows[0][b..b + n], &rows[6][b..b + n]);
     let (rt, lt) = (&rows[3][b + 3..b + 3 + n], &rows[3][b - 3..b - 3 + n]);
+    let (ur, dr) = (&rows[1][b + 2..b + 2 + n], &rows[5][b + 2..b + 2 + n]);
+    let (dl, ul) = (&rows[5][b - 2..b - 2 + n], &rows[1][b - 2..b - 2 + n]);
     let mut flag = vec![0u8; n];
     for i in 0..n {
         let (hi, lo) = (c[i].saturating_add(t), c[i].saturating_sub(t));
         let br = (up[i] > hi) as u8 + (dn[i] > hi) as u8 + (rt[i] > hi) as u8 + (lt[i] > hi) as u8;
         let dk = (up[i] < lo) as u8 + (dn[i] < lo) as u8 + (rt[i] < lo) as u8 + (lt[i] < lo) as u8;
-        flag[i] = (br >= 2) as u8 | (dk >= 2) as u8;
+        let bd = (ur[i] > hi) as u8 + (dr[i] > hi) as u8 + (dl[i] > hi) as u8 + (ul[i] > hi) as u8;
+        let dd = (ur[i] < lo) as u8 + (dr[i] < lo) as u8 + (dl[i] < lo) as u8 + (ul[i] < lo) as u8;
+        flag[i] = ((br >= 2) & (bd >= 2)) as u8 | ((dk >= 2) & (dd >= 2)) as u8;
     }
     let mut out = Vec::new();
     for (i, _) in flag.iter().enumerate().filter(|(_, f)| **f != 0) {
@@ -731,6 +736,132 @@ mod tests {
         // Wrapping around bit 15 -> bit 0.
         assert!(has_arc9(0b1111_0000_0000_0000 | 0b1_1111));
         assert!(!has_arc9(0b0101_0101_0101_0101));
+    }
+
+    fn test_level(w: u32, h: u32, seed: u64) -> Level {
+        Level::from_gray(&super::super::synth::natural_picture(w, h, seed))
+    }
+
+    #[test]
+    fn fast_rows_match_the_plain_segment_test() {
+        let l = test_level(200, 120, 5);
+        let t = 15u8;
+        let mut found = 0;
+        for y in BORDER as usize..l.height - BORDER as usize {
+            let got: Vec<i32> = fast_row(&l, y, t).iter().map(|c| c.0).collect();
+            let want: Vec<i32> = (BORDER..l.width as i32 - BORDER)
+                .filter(|&x| {
+                    let c = l.at(x, y as i32) as i16;
+                    let (mut mb, mut md) = (0u32, 0u32);
+                    for (k, (dx, dy)) in CIRCLE.iter().enumerate() {
+                        let p = l.at(x + dx, y as i32 + dy) as i16;
+                        if p > c + t as i16 {
+                            mb |= 1 << k;
+                        }
+                        if p < c - t as i16 {
+                            md |= 1 << k;
+                        }
+                    }
+                    has_arc9(mb) || has_arc9(md)
+                })
+                .collect();
+            assert_eq!(got, want, "row {y}");
+            found += want.len();
+        }
+        assert!(found > 100, "{found} corners");
+    }
+
+    #[test]
+    fn harris_matches_the_float_sum() {
+        let l = test_level(64, 64, 9);
+        for (x, y) in [(10, 10), (30, 21), (50, 40)] {
+            let (mut a, mut b, mut c) = (0f64, 0f64, 0f64);
+            for v in y - 3..=y + 3 {
+                for u in x - 3..=x + 3 {
+                    let p = |du: i32, dv: i32| l.at(u + du, v + dv) as f64;
+                    let gx = (p(1, -1) + 2.0 * p(1, 0) + p(1, 1))
+                        - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1));
+                    let gy = (p(-1, 1) + 2.0 * p(0, 1) + p(1, 1))
+                        - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1));
+                    a += gx * gx;
+                    b += gy * gy;
+                    c += gx * gy;
+                }
+            }
+            let want = ((a * b - c * c - 0.04 * (a + b) * (a + b)) / (49.0 * 49.0 * 16.0)) as f32;
+            let got = harris(&l, x as usize, y as usize);
+            assert!(
+                (got - want).abs() <= 1e-4 * want.abs().max(1.0),
+                "{got} vs {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn blur_and_resampling_match_their_plain_forms() {
+        let l = test_level(97, 61, 3);
+        // The row-slice blur against the per-pixel clamped one.
+        assert_eq!(l.blurred(), l.blurred_small());
+        // Resampling against Level::sample.
+        let s = l.blurred();
+        let r = s.resampled(LEVEL_SCALE, 1.0);
+        assert_eq!((r.width, r.height), (68, 43));
+        for y in 0..r.height {
+            for x in 0..r.width {
+                let sx = (x as f32 + 0.5) * LEVEL_SCALE - 0.5;
+                let sy = (y as f32 + 0.5) * LEVEL_SCALE - 0.5;
+                assert_eq!(r.at(x as i32, y as i32), (s.sample(sx, sy) + 0.5) as u8);
+            }
+        }
+        // Halving: 2 x 2 means, rounded.
+        let hf = l.downscaled(2.0);
+        assert_eq!((hf.width, hf.height, hf.scale), (48, 30, 2.0));
+        let m = |x: i32, y: i32| l.at(x, y) as u32;
+        assert_eq!(
+            hf.at(7, 5) as u32,
+            (m(14, 10) + m(15, 10) + m(14, 11) + m(15, 11) + 2) / 4
+        );
+    }
+
+    #[test]
+    fn orientation_follows_the_brighter_side() {
+        // A ramp brightening towards +x, then towards +y.
+        let ramp = |f: &dyn Fn(usize, usize) -> u8| Level {
+            width: 40,
+            height: 40,
+            data: (0..1600).map(|i| f(i % 40, i / 40)).collect(),
+            scale: 1.0,
+        };
+        let a = orientation(&ramp(&|x, _| (x * 6) as u8), 20, 20);
+        assert!(a.abs() < 1e-3, "{a}");
+        let a = orientation(&ramp(&|_, y| (y * 6) as u8), 20, 20);
+        assert!((a - std::f32::consts::FRAC_PI_2).abs() < 1e-3, "{a}");
+    }
+
+    #[test]
+    fn descriptors_of_a_rotated_picture_match() {
+        // The same point of a picture and of the picture turned by 90 degrees: the steered
+        // descriptors agree far better than those of different points.
+        let l = test_level(120, 120, 21);
+        let n = l.width;
+        let rot = Level {
+            width: n,
+            height: n,
+            // rot(x, y) = l(y, n - 1 - x): the picture turned by 90 degrees.
+            data: (0..n * n)
+                .map(|i| l.data[(n - 1 - i % n) * n + i / n])
+                .collect(),
+            scale: 1.0,
+        };
+        let (ls, rs) = (l.blurred(), rot.blurred());
+        let (x, y) = (50usize, 64usize);
+        // Where (x, y) of l lies in rot: rot(x', y') = l(y', n - 1 - x') = l(x, y).
+        let (xr, yr) = (n - 1 - y, x);
+        let d1 = describe(&ls, x, y, orientation(&l, x, y));
+        let d2 = describe(&rs, xr, yr, orientation(&rot, xr, yr));
+        let d3 = describe(&ls, 70, 40, orientation(&l, 70, 40));
+        assert!(hamming(&d1, &d2) < 30, "{}", hamming(&d1, &d2));
+        assert!(hamming(&d1, &d3) > 70, "{}", hamming(&d1, &d3));
     }
 
     #[test]

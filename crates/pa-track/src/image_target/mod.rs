@@ -75,7 +75,8 @@ pub struct ImageTarget {
     pyramid: Vec<Level>,
     /// The picture's own keypoints first (`direct` of them), then the simulated views'.
     keypoints: Vec<Keypoint>,
-    descriptors: Vec<Descriptor>,
+    /// Their descriptors, bit-sliced for matching.
+    index: matching::DescriptorIndex,
     direct: usize,
     track_points: Vec<PatchPoint>,
 }
@@ -183,7 +184,7 @@ impl ImageTarget {
             height_px: work.height as u32,
             pyramid,
             keypoints,
-            descriptors,
+            index: matching::DescriptorIndex::new(&descriptors),
             direct,
             track_points: Vec::new(),
         };
@@ -369,7 +370,7 @@ impl ImageTarget {
             min_per_level: 0,
         };
         let (fk, fd) = features::detect_and_describe_smoothed(&pyr, &smooth, &cfg);
-        let m = matching::match_descriptors(&fk, &fd, &self.descriptors, &Default::default());
+        let m = matching::match_indexed(&fk, &fd, &self.index, &Default::default());
         let src: Vec<DVec2> = m
             .iter()
             .map(|x| {

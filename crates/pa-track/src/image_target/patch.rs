@@ -60,8 +60,6 @@ const N_IN: usize = (2 * HALF + 1) as usize;
 const NPX: usize = N_IN * N_IN;
 /// Largest search radius (pixels); larger requests are clamped to it.
 const MAX_RADIUS: i32 = 12;
-/// Side of the largest frame window the correlation search reads.
-const WIN_MAX: usize = (2 * (MAX_RADIUS + HALF) + 1) as usize;
 
 /// Bilinear sample of `l` at `(x, y)`: as [`Level::sample`], without its clamping where
 /// the four pixels lie inside.
@@ -269,15 +267,16 @@ fn ncc_search(
     }
     let (x0, y0) = (x0 as usize, y0 as usize);
     // The window as f32, and integral images of its values and squares (exact in u32).
-    let mut fw = [0f32; WIN_MAX * WIN_MAX];
-    let mut s1 = [0u32; (WIN_MAX + 1) * (WIN_MAX + 1)];
-    let mut s2 = [0u32; (WIN_MAX + 1) * (WIN_MAX + 1)];
-    let stride = WIN_MAX + 1;
+    let stride = win + 1;
+    let mut fw = vec![0f32; win * win];
+    let mut s1 = vec![0u32; stride * stride];
+    let mut s2 = vec![0u32; stride * stride];
     for y in 0..win {
-        let src = &frame.data[(y0 + y) * frame.width + x0..(y0 + y) * frame.width + x0 + win];
+        let start = (y0 + y) * frame.width + x0;
+        let src = &frame.data[start..start + win];
         let (mut r1, mut r2) = (0u32, 0u32);
         for (x, &v) in src.iter().enumerate() {
-            fw[y * WIN_MAX + x] = v as f32;
+            fw[y * win + x] = v as f32;
             r1 += v as u32;
             r2 += v as u32 * v as u32;
             s1[(y + 1) * stride + x + 1] = s1[y * stride + x + 1] + r1;
@@ -298,13 +297,16 @@ fn ncc_search(
             if v <= 1e-3 {
                 continue;
             }
-            let mut sft = 0f32;
+            // One accumulator per template column (independent sums).
+            let mut acc = [0f32; N_IN];
             for (ky, trow) in tn.chunks_exact(N_IN).enumerate() {
-                let frow = &fw[(sy + ky) * WIN_MAX + sx..(sy + ky) * WIN_MAX + sx + N_IN];
-                for (a, b) in frow.iter().zip(trow) {
-                    sft += a * b;
+                let start = (sy + ky) * win + sx;
+                let frow = &fw[start..start + N_IN];
+                for k in 0..N_IN {
+                    acc[k] += frow[k] * trow[k];
                 }
             }
+            let sft: f32 = acc.iter().sum();
             let ncc = sft / (v.sqrt() * n.sqrt());
             if ncc > best.0 {
                 best = (ncc, sx as i32 - radius, sy as i32 - radius);
