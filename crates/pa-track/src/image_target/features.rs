@@ -169,45 +169,43 @@ impl Level {
         if w < 5 || h < 5 {
             return self.blurred_small();
         }
-        // Horizontal pass (u16: at most 16 x 255).
-        let mut tmp = vec![0u16; w * h];
-        tmp.par_chunks_mut(w)
-            .zip(self.data.par_chunks_exact(w))
-            .with_min_len(16)
-            .for_each(|(out, src)| {
-                let n = w - 4;
-                let (a, b, c) = (&src[..n], &src[1..n + 1], &src[2..n + 2]);
-                let (d, e) = (&src[3..n + 3], &src[4..n + 4]);
-                let o = &mut out[2..n + 2];
-                for i in 0..n {
-                    o[i] = a[i] as u16
-                        + 4 * b[i] as u16
-                        + 6 * c[i] as u16
-                        + 4 * d[i] as u16
-                        + e[i] as u16;
-                }
-                for x in [0, 1, w - 2, w - 1] {
-                    let g =
-                        |dx: isize| src[(x as isize + dx).clamp(0, w as isize - 1) as usize] as u16;
-                    out[x] = g(-2) + 4 * g(-1) + 6 * g(0) + 4 * g(1) + g(2);
-                }
-            });
-        // Vertical pass (u16: at most 256 x 255 + 128).
+        // Per output row: the vertical pass into a row of u16 (at most 16 x 255), then the
+        // horizontal one (at most 256 x 255 + 128).
         let mut data = vec![0u8; w * h];
         data.par_chunks_mut(w)
             .enumerate()
             .with_min_len(16)
-            .for_each(|(y, out)| {
-                let r = |dy: isize| {
-                    let yy = (y as isize + dy).clamp(0, h as isize - 1) as usize;
-                    &tmp[yy * w..(yy + 1) * w]
-                };
-                let (a, b, c, d, e) = (r(-2), r(-1), r(0), r(1), r(2));
-                for i in 0..w {
-                    let s = a[i] + 4 * b[i] + 6 * c[i] + 4 * d[i] + e[i];
-                    out[i] = ((s + 128) >> 8) as u8;
-                }
-            });
+            .for_each_init(
+                || vec![0u16; w],
+                |col, (y, out)| {
+                    let r = |dy: isize| {
+                        let yy = (y as isize + dy).clamp(0, h as isize - 1) as usize;
+                        &self.data[yy * w..(yy + 1) * w]
+                    };
+                    let (a, b, c, d, e) = (r(-2), r(-1), r(0), r(1), r(2));
+                    for i in 0..w {
+                        col[i] = a[i] as u16
+                            + 4 * b[i] as u16
+                            + 6 * c[i] as u16
+                            + 4 * d[i] as u16
+                            + e[i] as u16;
+                    }
+                    let n = w - 4;
+                    let (ca, cb, cc) = (&col[..n], &col[1..n + 1], &col[2..n + 2]);
+                    let (cd, ce) = (&col[3..n + 3], &col[4..n + 4]);
+                    let o = &mut out[2..n + 2];
+                    for i in 0..n {
+                        let s = ca[i] + 4 * cb[i] + 6 * cc[i] + 4 * cd[i] + ce[i];
+                        o[i] = ((s + 128) >> 8) as u8;
+                    }
+                    for x in [0, 1, w - 2, w - 1] {
+                        let g =
+                            |dx: isize| col[(x as isize + dx).clamp(0, w as isize - 1) as usize];
+                        let s = g(-2) + 4 * g(-1) + 6 * g(0) + 4 * g(1) + g(2);
+                        out[x] = ((s + 128) >> 8) as u8;
+                    }
+                },
+            );
         Self {
             width: w,
             height: h,

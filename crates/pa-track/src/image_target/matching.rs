@@ -103,11 +103,10 @@ impl DescriptorIndex {
     /// second)` with `best` and `second` at most `cap` (index 0 when `best == cap`).
     pub fn nearest_two_below(&self, d: &Descriptor, cap: u32) -> (usize, u32, u32) {
         // The query's bits as all-ones / all-zeros masks, one per plane.
-        let mut q = [[0u64; 2]; 256];
-        for (b, m) in q.iter_mut().enumerate() {
+        let q: [Lanes; 256] = std::array::from_fn(|b| {
             let v = 0u64.wrapping_sub((d[b / 64] >> (b % 64)) & 1);
-            *m = [v, v];
-        }
+            [v, v]
+        });
         let (mut bi, mut b1, mut b2) = (0usize, cap, cap);
         for (bn, block) in self.blocks.iter().enumerate() {
             let c = block_distances(block, &q);

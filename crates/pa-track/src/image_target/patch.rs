@@ -26,6 +26,34 @@ pub struct Tracked {
     pub ncc: f32,
 }
 
+/// A borrowed 8-bit frame (row-major, `width x height`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame<'a> {
+    pub data: &'a [u8],
+    pub width: usize,
+    pub height: usize,
+}
+
+impl<'a> From<&'a Level> for Frame<'a> {
+    fn from(l: &'a Level) -> Self {
+        Self {
+            data: &l.data,
+            width: l.width,
+            height: l.height,
+        }
+    }
+}
+
+impl<'a> From<&'a crate::GrayImage> for Frame<'a> {
+    fn from(g: &'a crate::GrayImage) -> Self {
+        Self {
+            data: &g.data,
+            width: g.width as usize,
+            height: g.height as usize,
+        }
+    }
+}
+
 /// What a point needs: its picture pixel (level 0) and its marker-frame position.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PatchPoint {
@@ -37,7 +65,7 @@ pub struct PatchPoint {
 /// `radius` pixels. `metres_per_px` converts picture pixels to marker metres (x, y).
 pub fn track(
     picture: &[Level],
-    frame: &Level,
+    frame: Frame<'_>,
     camera: &CameraModel,
     pose: &Pose,
     points: &[PatchPoint],
@@ -81,7 +109,7 @@ fn bilinear(l: &Level, x: f32, y: f32) -> f32 {
 
 /// The frame's `N_IN x N_IN` pixels at integer offsets from `(x, y)` (bilinear, one shared
 /// set of weights); `None` when any lies outside.
-fn frame_patch(frame: &Level, x: f32, y: f32, out: &mut [f32; NPX]) -> Option<()> {
+fn frame_patch(frame: Frame<'_>, x: f32, y: f32, out: &mut [f32; NPX]) -> Option<()> {
     if !(x >= 0.0 && y >= 0.0) {
         return None;
     }
@@ -110,7 +138,7 @@ fn frame_patch(frame: &Level, x: f32, y: f32, out: &mut [f32; NPX]) -> Option<()
 
 fn track_one(
     picture: &[Level],
-    frame: &Level,
+    frame: Frame<'_>,
     camera: &CameraModel,
     pose: &Pose,
     pt: &PatchPoint,
@@ -253,7 +281,7 @@ fn track_one(
 /// integer shifts within `radius` of `(cx, cy)` (the whole window inside the frame):
 /// `(ncc, sx, sy)`.
 fn ncc_search(
-    frame: &Level,
+    frame: Frame<'_>,
     cx: i32,
     cy: i32,
     radius: i32,
