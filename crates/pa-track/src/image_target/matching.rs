@@ -164,31 +164,31 @@ fn csa(a: Lanes, b: Lanes, c: Lanes) -> (Lanes, Lanes) {
 }
 
 /// The Hamming distances of the query (as masks `q`) to a block's 128 descriptors,
-/// bit-sliced: 9 planes, least significant first (Harley-Seal carry-save counting).
+/// bit-sliced: 9 planes, least significant first (Harley-Seal carry-save counting, 16
+/// planes at a time; written out so that it compiles to straight SSE2 code).
+#[inline(never)]
 fn block_distances(block: &[Lanes; 256], q: &[Lanes; 256]) -> [Lanes; 9] {
     let z = [0u64; 2];
     let (mut ones, mut twos, mut fours, mut eights) = (z, z, z, z);
     let mut sixteens = [z; 5];
     for (p, m) in block.chunks_exact(16).zip(q.chunks_exact(16)) {
         let x = |i: usize| [p[i][0] ^ m[i][0], p[i][1] ^ m[i][1]];
-        let mut fours_in = [z; 2];
-        let mut eights_in = [z; 2];
-        for (e, eights_slot) in eights_in.iter_mut().enumerate() {
-            for (f, fours_slot) in fours_in.iter_mut().enumerate() {
-                let i = 8 * e + 4 * f;
-                let (ta, o) = csa(ones, x(i), x(i + 1));
-                let (tb, o) = csa(o, x(i + 2), x(i + 3));
-                ones = o;
-                let (fo, t) = csa(twos, ta, tb);
-                twos = t;
-                *fours_slot = fo;
-            }
-            let (ei, f) = csa(fours, fours_in[0], fours_in[1]);
-            fours = f;
-            *eights_slot = ei;
-        }
-        let (carry16, e) = csa(eights, eights_in[0], eights_in[1]);
-        eights = e;
+        let (ta, o) = csa(ones, x(0), x(1));
+        let (tb, o) = csa(o, x(2), x(3));
+        let (fa, t) = csa(twos, ta, tb);
+        let (ta, o) = csa(o, x(4), x(5));
+        let (tb, o) = csa(o, x(6), x(7));
+        let (fb, t) = csa(t, ta, tb);
+        let (ea, f) = csa(fours, fa, fb);
+        let (ta, o) = csa(o, x(8), x(9));
+        let (tb, o) = csa(o, x(10), x(11));
+        let (fa, t) = csa(t, ta, tb);
+        let (ta, o) = csa(o, x(12), x(13));
+        let (tb, o) = csa(o, x(14), x(15));
+        let (fb, t) = csa(t, ta, tb);
+        let (eb, f) = csa(f, fa, fb);
+        let (carry16, e) = csa(eights, ea, eb);
+        (ones, twos, fours, eights) = (o, t, f, e);
         // Add to the (5-bit) count of sixteens.
         let mut carry = carry16;
         for c in sixteens.iter_mut() {
