@@ -38,7 +38,7 @@ use pa_camera::CameraModel;
 use crate::pose::{estimate_planar_pose, PoseEstimate};
 use crate::{GrayImage, Pose, TrackError};
 use features::{Descriptor, FeatureConfig, Keypoint, Level};
-use patch::PatchPoint;
+use patch::{Frame, PatchPoint};
 
 pub use quality::{assess_picture, PictureQuality, Verdict};
 
@@ -54,6 +54,8 @@ const FRAME_LEVELS: usize = 4;
 /// Oblique views simulated for matching at grazing angles: (direction deg, tilt), the tilt
 /// being `1 / cos(viewing angle)` (2: 60 degrees).
 pub const SIMULATED_VIEWS: [(f32, f32); 4] = [(0.0, 2.0), (45.0, 2.0), (90.0, 2.0), (135.0, 2.0)];
+/// Keypoints each level of a simulated view keeps at least.
+const SIMULATED_MIN_PER_LEVEL: usize = 100;
 /// Points used for frame-to-frame tracking.
 const MAX_TRACK_POINTS: usize = 400;
 /// Points of the coarse (wide search) tracking pass.
@@ -73,7 +75,8 @@ pub struct ImageTarget {
     pyramid: Vec<Level>,
     /// The picture's own keypoints first (`direct` of them), then the simulated views'.
     keypoints: Vec<Keypoint>,
-    descriptors: Vec<Descriptor>,
+    /// Their descriptors, bit-sliced for matching.
+    index: matching::DescriptorIndex,
     direct: usize,
     track_points: Vec<PatchPoint>,
 }
@@ -122,17 +125,21 @@ pub(crate) fn picture_features(
         height: work.height as u32,
         data: work.data.clone(),
     };
-    let pyr = features::pyramid(&img, PICTURE_LEVELS);
+    let (pyr, smooth) = features::pyramid_smoothed(&img, PICTURE_LEVELS);
     let cfg = FeatureConfig {
         fast_threshold: 15,
         max_keypoints: 1500,
         cell_px: 24,
+        min_per_level: 0,
     };
-    let (mut k, mut d) = features::detect_and_describe(&pyr, &cfg);
+    let (mut k, mut d) = features::detect_and_describe_smoothed(&pyr, &smooth, &cfg);
     let direct = k.len();
     if simulate {
+        // At least `SIMULATED_MIN_PER_LEVEL` per level: the coarse levels of a simulated view
+        // are what a distant view at a grazing angle matches.
         let cfg = FeatureConfig {
             max_keypoints: 500,
+            min_per_level: SIMULATED_MIN_PER_LEVEL,
             ..cfg
         };
         for &(phi_deg, tilt) in &SIMULATED_VIEWS {
@@ -177,7 +184,7 @@ impl ImageTarget {
             height_px: work.height as u32,
             pyramid,
             keypoints,
-            descriptors,
+            index: matching::DescriptorIndex::new(&descriptors),
             direct,
             track_points: Vec::new(),
         };
@@ -272,8 +279,12 @@ impl ImageTarget {
         predicted: Option<&Pose>,
     ) -> Option<ImageObservation> {
         if let Some(p) = predicted {
-            let level = Level::from_gray(frame);
-            if let Some(o) = self.track(&level, camera, p) {
+            // Tracked on the frame's own pixels (no copy).
+            let consistent = frame.data.len() == frame.width as usize * frame.height as usize;
+            if let Some(o) = consistent
+                .then(|| self.track_frame(frame.into(), camera, p))
+                .flatten()
+            {
                 return Some(o);
             }
         }
@@ -284,6 +295,16 @@ impl ImageTarget {
     pub fn track(
         &self,
         frame: &Level,
+        camera: &CameraModel,
+        predicted: &Pose,
+    ) -> Option<ImageObservation> {
+        self.track_frame(frame.into(), camera, predicted)
+    }
+
+    /// [`ImageTarget::track`] on borrowed pixels.
+    fn track_frame(
+        &self,
+        frame: Frame<'_>,
         camera: &CameraModel,
         predicted: &Pose,
     ) -> Option<ImageObservation> {
@@ -315,7 +336,7 @@ impl ImageTarget {
         &self,
         camera: &CameraModel,
         pose: &Pose,
-        frame: &Level,
+        frame: Frame<'_>,
         max: usize,
     ) -> Vec<PatchPoint> {
         let (w, h) = (frame.width as f64, frame.height as f64);
@@ -334,7 +355,7 @@ impl ImageTarget {
     /// One patch pass over all tracking points around `pose`, then a robust pose fit.
     fn refine(
         &self,
-        frame: &Level,
+        frame: Frame<'_>,
         camera: &CameraModel,
         pose: &Pose,
         radius: i32,
@@ -355,14 +376,15 @@ impl ImageTarget {
 
     /// Full detection: features, matching, RANSAC homography, pose, patch refinement.
     pub fn detect(&self, frame: &GrayImage, camera: &CameraModel) -> Option<ImageObservation> {
-        let pyr = features::pyramid(frame, FRAME_LEVELS);
+        let (pyr, smooth) = features::pyramid_smoothed(frame, FRAME_LEVELS);
         let cfg = FeatureConfig {
             fast_threshold: 18,
             max_keypoints: 2500,
             cell_px: 32,
+            min_per_level: 0,
         };
-        let (fk, fd) = features::detect_and_describe(&pyr, &cfg);
-        let m = matching::match_descriptors(&fk, &fd, &self.descriptors, &Default::default());
+        let (fk, fd) = features::detect_and_describe_smoothed(&pyr, &smooth, &cfg);
+        let m = matching::match_indexed(&fk, &fd, &self.index, &Default::default());
         let src: Vec<DVec2> = m
             .iter()
             .map(|x| {
@@ -381,8 +403,8 @@ impl ImageTarget {
             .collect();
         let (est, _) = fit_pose(camera, &pairs, 8)?;
         let level = &pyr[0];
-        let (est, _) = self.refine(level, camera, &est.best.pose, 4)?;
-        let (estimate, correspondences) = self.refine(level, camera, &est.best.pose, 1)?;
+        let (est, _) = self.refine(level.into(), camera, &est.best.pose, 4)?;
+        let (estimate, correspondences) = self.refine(level.into(), camera, &est.best.pose, 1)?;
         Some(ImageObservation {
             estimate,
             correspondences,
@@ -429,4 +451,99 @@ fn fit_pose(
     let (obj, img): (Vec<DVec3>, Vec<DVec2>) = kept.iter().copied().unzip();
     let est = estimate_planar_pose(camera, &obj, &img).ok()?;
     Some((est, kept))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::synth::{natural_picture, render_view, view_pose, Pinhole};
+    use super::*;
+    use pa_camera::Intrinsics;
+
+    const WIDTH_M: f64 = 0.25;
+
+    fn pinhole() -> Pinhole {
+        Pinhole {
+            fx: 1000.0,
+            fy: 1000.0,
+            cx: 639.5,
+            cy: 359.5,
+            width: 1280,
+            height: 720,
+        }
+    }
+
+    fn camera() -> CameraModel {
+        let p = pinhole();
+        CameraModel::pinhole(Intrinsics {
+            fx: p.fx,
+            fy: p.fy,
+            cx: p.cx,
+            cy: p.cy,
+            width: p.width,
+            height: p.height,
+        })
+    }
+
+    /// The picture's corners under `pose`, plain pinhole.
+    fn true_corners(target: &ImageTarget, pose: &Pose) -> [DVec2; 4] {
+        let p = pinhole();
+        target.corner_points().map(|c| {
+            let c = pose.transform_point(c);
+            DVec2::new(p.fx * c.x / c.z + p.cx, p.fy * c.y / c.z + p.cy)
+        })
+    }
+
+    #[test]
+    fn distant_views_at_sixty_degrees_are_found() {
+        // The picture small (about 280 x 100 px) and foreshortened by 2: what the simulated
+        // views' coarse levels are for. These are the bench's 0.9 m, 60 degree views.
+        let pic = natural_picture(640, 480, 7);
+        let target = ImageTarget::new(&pic, WIDTH_M).expect("target");
+        let cam = camera();
+        for (j, roll) in [0.0, 100.0, 230.0].into_iter().enumerate() {
+            let truth = view_pose(0.9, 60.0, roll, 0.08, 0.05 * (j as f64 - 1.0));
+            let seed = 30 + j as u64 + 6000;
+            let frame = render_view(&pic, WIDTH_M, &pinhole(), &truth, 90, 0.7, 2.0, seed);
+            let obs = target
+                .detect(&frame, &cam)
+                .unwrap_or_else(|| panic!("roll {roll}: not found"));
+            let got = target
+                .corners_px(&cam, &obs.estimate.best.pose)
+                .expect("corners");
+            let want = true_corners(&target, &truth);
+            for (g, w) in got.iter().zip(&want) {
+                assert!(g.distance(*w) < 1.0, "roll {roll}: {g} vs {w}");
+            }
+        }
+    }
+
+    #[test]
+    fn results_do_not_depend_on_the_thread_count() {
+        let pic = natural_picture(320, 240, 5);
+        let cam = camera();
+        let truth = view_pose(0.6, 35.0, 20.0, 0.02, -0.03);
+        let frame = render_view(&pic, WIDTH_M, &pinhole(), &truth, 90, 0.7, 2.0, 9);
+        let next = view_pose(0.595, 35.5, 21.0, 0.02, -0.03);
+        let frame2 = render_view(&pic, WIDTH_M, &pinhole(), &next, 90, 0.7, 2.0, 10);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            pool.install(|| {
+                let target = ImageTarget::new(&pic, WIDTH_M).expect("target");
+                let det = target.detect(&frame, &cam).expect("detected");
+                let trk = target
+                    .locate(&frame2, &cam, Some(&det.estimate.best.pose))
+                    .expect("tracked");
+                (target, det, trk)
+            })
+        };
+        let (t1, d1, k1) = run(1);
+        let (t3, d3, k3) = run(3);
+        assert!(k1.tracked);
+        assert_eq!(t1, t3);
+        assert_eq!(d1, d3);
+        assert_eq!(k1, k3);
+    }
 }

@@ -26,6 +26,34 @@ pub struct Tracked {
     pub ncc: f32,
 }
 
+/// A borrowed 8-bit frame (row-major, `width x height`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame<'a> {
+    pub data: &'a [u8],
+    pub width: usize,
+    pub height: usize,
+}
+
+impl<'a> From<&'a Level> for Frame<'a> {
+    fn from(l: &'a Level) -> Self {
+        Self {
+            data: &l.data,
+            width: l.width,
+            height: l.height,
+        }
+    }
+}
+
+impl<'a> From<&'a crate::GrayImage> for Frame<'a> {
+    fn from(g: &'a crate::GrayImage) -> Self {
+        Self {
+            data: &g.data,
+            width: g.width as usize,
+            height: g.height as usize,
+        }
+    }
+}
+
 /// What a point needs: its picture pixel (level 0) and its marker-frame position.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PatchPoint {
@@ -37,7 +65,7 @@ pub struct PatchPoint {
 /// `radius` pixels. `metres_per_px` converts picture pixels to marker metres (x, y).
 pub fn track(
     picture: &[Level],
-    frame: &Level,
+    frame: Frame<'_>,
     camera: &CameraModel,
     pose: &Pose,
     points: &[PatchPoint],
@@ -54,15 +82,70 @@ pub fn track(
         .collect()
 }
 
+/// Template side with a one-pixel rim for the gradients, inner side, inner pixels.
+const SIDE: usize = (2 * HALF + 3) as usize;
+const N_IN: usize = (2 * HALF + 1) as usize;
+const NPX: usize = N_IN * N_IN;
+/// Largest search radius (pixels); larger requests are clamped to it.
+const MAX_RADIUS: i32 = 12;
+
+/// Bilinear sample of `l` at `(x, y)`: as [`Level::sample`], without its clamping where
+/// the four pixels lie inside.
+#[inline]
+fn bilinear(l: &Level, x: f32, y: f32) -> f32 {
+    if x >= 0.0 && y >= 0.0 && x < (l.width - 1) as f32 && y < (l.height - 1) as f32 {
+        let (x0, y0) = (x as usize, y as usize);
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let i = y0 * l.width + x0;
+        let (a, b) = (l.data[i] as f32, l.data[i + 1] as f32);
+        let (c, d) = (l.data[i + l.width] as f32, l.data[i + l.width + 1] as f32);
+        let top = a + (b - a) * fx;
+        let bot = c + (d - c) * fx;
+        top + (bot - top) * fy
+    } else {
+        l.sample(x, y)
+    }
+}
+
+/// The frame's `N_IN x N_IN` pixels at integer offsets from `(x, y)` (bilinear, one shared
+/// set of weights); `None` when any lies outside.
+fn frame_patch(frame: Frame<'_>, x: f32, y: f32, out: &mut [f32; NPX]) -> Option<()> {
+    if !(x >= 0.0 && y >= 0.0) {
+        return None;
+    }
+    let (x0, y0) = (x as usize, y as usize);
+    if x0 + N_IN >= frame.width || y0 + N_IN >= frame.height {
+        return None;
+    }
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let w = frame.width;
+    for (r, o) in out.chunks_exact_mut(N_IN).enumerate() {
+        let i = (y0 + r) * w + x0;
+        let (r0, r1) = (
+            &frame.data[i..i + N_IN + 1],
+            &frame.data[i + w..i + w + N_IN + 1],
+        );
+        for (k, v) in o.iter_mut().enumerate() {
+            let (a, b) = (r0[k] as f32, r0[k + 1] as f32);
+            let (c, d) = (r1[k] as f32, r1[k + 1] as f32);
+            let top = a + (b - a) * fx;
+            let bot = c + (d - c) * fx;
+            *v = top + (bot - top) * fy;
+        }
+    }
+    Some(())
+}
+
 fn track_one(
     picture: &[Level],
-    frame: &Level,
+    frame: Frame<'_>,
     camera: &CameraModel,
     pose: &Pose,
     pt: &PatchPoint,
     mpp: DVec2,
     radius: i32,
 ) -> Option<(DVec2, f32)> {
+    let radius = radius.clamp(0, MAX_RADIUS);
     let proj = |o: DVec3| {
         camera
             .pixel_from_camera(pose.transform_point(o))
@@ -95,68 +178,50 @@ fn track_one(
     let lvl = &picture[level];
     let pi = DVec2::new(p.x.round(), p.y.round());
     let off = pi - p;
-    let side = (2 * HALF + 3) as usize;
-    let mut t = vec![0f32; side * side];
-    for (k, v) in t.iter_mut().enumerate() {
-        let ox = (k % side) as f64 - (HALF + 1) as f64 + off.x;
-        let oy = (k / side) as f64 - (HALF + 1) as f64 + off.y;
-        let q = pt.picture_px
-            + DVec2::new(
-                inv[0][0] * ox + inv[0][1] * oy,
-                inv[1][0] * ox + inv[1][1] * oy,
-            );
-        let s = lvl.scale as f64;
-        *v = lvl.sample(
-            ((q.x + 0.5) / s - 0.5) as f32,
-            ((q.y + 0.5) / s - 0.5) as f32,
-        );
+    // The template: the picture around the point warped into the frame's pixel grid, in
+    // the level's pixels: q(kx, ky) = q0 + kx ax + ky ay.
+    let s = lvl.scale as f64;
+    let o0 = off - DVec2::splat((HALF + 1) as f64);
+    let q0 = (pt.picture_px
+        + DVec2::new(
+            inv[0][0] * o0.x + inv[0][1] * o0.y,
+            inv[1][0] * o0.x + inv[1][1] * o0.y,
+        )
+        + 0.5)
+        / s
+        - 0.5;
+    let ax = DVec2::new(inv[0][0], inv[1][0]) / s;
+    let ay = DVec2::new(inv[0][1], inv[1][1]) / s;
+    let mut t = [0f32; SIDE * SIDE];
+    for (ky, row) in t.chunks_exact_mut(SIDE).enumerate() {
+        let r = q0 + ay * ky as f64;
+        for (kx, v) in row.iter_mut().enumerate() {
+            let q = r + ax * kx as f64;
+            *v = bilinear(lvl, q.x as f32, q.y as f32);
+        }
     }
     // Inner template, zero mean, unit norm; gradients for Lucas-Kanade.
-    let n_in = (2 * HALF + 1) as usize;
-    let inner = |k: usize| (k / n_in + 1) * side + (k % n_in + 1);
-    let npx = n_in * n_in;
-    let mean = (0..npx).map(|k| t[inner(k)]).sum::<f32>() / npx as f32;
-    let var = (0..npx).map(|k| (t[inner(k)] - mean).powi(2)).sum::<f32>() / npx as f32;
+    let inner = |k: usize| (k / N_IN + 1) * SIDE + (k % N_IN + 1);
+    let mean = (0..NPX).map(|k| t[inner(k)]).sum::<f32>() / NPX as f32;
+    let var = (0..NPX).map(|k| (t[inner(k)] - mean).powi(2)).sum::<f32>() / NPX as f32;
     let std = var.sqrt();
     if std < MIN_STD {
         return None;
     }
-    let tn: Vec<f32> = (0..npx).map(|k| (t[inner(k)] - mean) / std).collect();
-    let grad: Vec<(f32, f32)> = (0..npx)
-        .map(|k| {
-            let i = inner(k);
-            (
-                0.5 * (t[i + 1] - t[i - 1]) / std,
-                0.5 * (t[i + side] - t[i - side]) / std,
-            )
-        })
-        .collect();
-
-    // Integer search by NCC.
-    let (cx, cy) = (pi.x as i32, pi.y as i32);
-    let mut best = (f32::NEG_INFINITY, 0i32, 0i32);
-    for sy in -radius..=radius {
-        for sx in -radius..=radius {
-            let (mut sf, mut sff, mut sft) = (0f32, 0f32, 0f32);
-            for (k, tv) in tn.iter().enumerate() {
-                let x = cx + sx + (k % n_in) as i32 - HALF;
-                let y = cy + sy + (k / n_in) as i32 - HALF;
-                let f = frame.at(x, y) as f32;
-                sf += f;
-                sff += f * f;
-                sft += f * tv;
-            }
-            let v = sff - sf * sf / npx as f32;
-            let ncc = if v > 1e-3 {
-                sft / (v.sqrt() * (npx as f32).sqrt())
-            } else {
-                f32::NEG_INFINITY
-            };
-            if ncc > best.0 {
-                best = (ncc, sx, sy);
-            }
-        }
+    let mut tn = [0f32; NPX];
+    let mut grad = [(0f32, 0f32); NPX];
+    for k in 0..NPX {
+        let i = inner(k);
+        tn[k] = (t[i] - mean) / std;
+        grad[k] = (
+            0.5 * (t[i + 1] - t[i - 1]) / std,
+            0.5 * (t[i + SIDE] - t[i - SIDE]) / std,
+        );
     }
+
+    // Integer search by NCC over the frame window around the prediction.
+    let (cx, cy) = (pi.x as i32, pi.y as i32);
+    let best = ncc_search(frame, cx, cy, radius, &tn)?;
     if best.0 < MIN_NCC - 0.1 {
         return None;
     }
@@ -173,27 +238,28 @@ fn track_one(
     }
     let mut d = (best.1 as f32, best.2 as f32);
     let mut ncc = best.0;
-    let mut f = vec![0f32; npx];
+    let mut f = [0f32; NPX];
     for _ in 0..8 {
-        for (k, v) in f.iter_mut().enumerate() {
-            let x = cx as f32 + d.0 + (k % n_in) as f32 - HALF as f32;
-            let y = cy as f32 + d.1 + (k / n_in) as f32 - HALF as f32;
-            *v = frame.sample(x, y);
-        }
-        let fm = f.iter().sum::<f32>() / npx as f32;
-        let fs = (f.iter().map(|v| (v - fm).powi(2)).sum::<f32>() / npx as f32).sqrt();
+        frame_patch(
+            frame,
+            cx as f32 + d.0 - HALF as f32,
+            cy as f32 + d.1 - HALF as f32,
+            &mut f,
+        )?;
+        let fm = f.iter().sum::<f32>() / NPX as f32;
+        let fs = (f.iter().map(|v| (v - fm).powi(2)).sum::<f32>() / NPX as f32).sqrt();
         if fs < 1e-3 {
             return None;
         }
         let (mut ex, mut ey, mut cc) = (0f32, 0f32, 0f32);
-        for k in 0..npx {
+        for k in 0..NPX {
             let fv = (f[k] - fm) / fs;
             let e = fv - tn[k];
             ex += grad[k].0 * e;
             ey += grad[k].1 * e;
             cc += fv * tn[k];
         }
-        ncc = cc / npx as f32;
+        ncc = cc / NPX as f32;
         let dx = (c * ex - b * ey) / hdet;
         let dy = (a * ey - b * ex) / hdet;
         d.0 -= dx;
@@ -209,4 +275,71 @@ fn track_one(
         return None;
     }
     Some((pi + DVec2::new(d.0 as f64, d.1 as f64) - off, ncc))
+}
+
+/// The best normalised cross-correlation of the zero-mean, unit-norm template `tn` over
+/// integer shifts within `radius` of `(cx, cy)` (the whole window inside the frame):
+/// `(ncc, sx, sy)`.
+fn ncc_search(
+    frame: Frame<'_>,
+    cx: i32,
+    cy: i32,
+    radius: i32,
+    tn: &[f32; NPX],
+) -> Option<(f32, i32, i32)> {
+    let r = radius + HALF;
+    let win = (2 * r + 1) as usize;
+    let (x0, y0) = (cx - r, cy - r);
+    if x0 < 0 || y0 < 0 || x0 as usize + win > frame.width || y0 as usize + win > frame.height {
+        return None;
+    }
+    let (x0, y0) = (x0 as usize, y0 as usize);
+    // The window as f32, and integral images of its values and squares (exact in u32).
+    let stride = win + 1;
+    let mut fw = vec![0f32; win * win];
+    let mut s1 = vec![0u32; stride * stride];
+    let mut s2 = vec![0u32; stride * stride];
+    for y in 0..win {
+        let start = (y0 + y) * frame.width + x0;
+        let src = &frame.data[start..start + win];
+        let (mut r1, mut r2) = (0u32, 0u32);
+        for (x, &v) in src.iter().enumerate() {
+            fw[y * win + x] = v as f32;
+            r1 += v as u32;
+            r2 += v as u32 * v as u32;
+            s1[(y + 1) * stride + x + 1] = s1[y * stride + x + 1] + r1;
+            s2[(y + 1) * stride + x + 1] = s2[y * stride + x + 1] + r2;
+        }
+    }
+    let box_sum = |s: &[u32], x: usize, y: usize| {
+        let (a, b) = (y * stride + x, (y + N_IN) * stride + x);
+        s[b + N_IN] + s[a] - s[a + N_IN] - s[b]
+    };
+    let n = NPX as f32;
+    let mut best = (f32::NEG_INFINITY, 0i32, 0i32);
+    for sy in 0..=(2 * radius) as usize {
+        for sx in 0..=(2 * radius) as usize {
+            let sf = box_sum(&s1, sx, sy) as f32;
+            let sff = box_sum(&s2, sx, sy) as f32;
+            let v = sff - sf * sf / n;
+            if v <= 1e-3 {
+                continue;
+            }
+            // One accumulator per template column (independent sums).
+            let mut acc = [0f32; N_IN];
+            for (ky, trow) in tn.chunks_exact(N_IN).enumerate() {
+                let start = (sy + ky) * win + sx;
+                let frow = &fw[start..start + N_IN];
+                for k in 0..N_IN {
+                    acc[k] += frow[k] * trow[k];
+                }
+            }
+            let sft: f32 = acc.iter().sum();
+            let ncc = sft / (v.sqrt() * n.sqrt());
+            if ncc > best.0 {
+                best = (ncc, sx as i32 - radius, sy as i32 - radius);
+            }
+        }
+    }
+    Some(best)
 }
