@@ -26,10 +26,12 @@ use crate::{PoseFilterConfig, TagFamily, TrackError};
 type Observed = (PoseCandidate, Vec<(glam::DVec3, DVec2)>, Vec<u32>);
 
 /// A picture found by frame-to-frame tracking fits its hundreds of sub-pixel points to a few
-/// tenths of a pixel; above this RMS (pixels) the patches locked onto the wrong place (seen:
-/// a prediction 6 frames stale at 480x270, 2.1 px RMS and 13 mm off), and the picture is
-/// looked for again ([`locate_checked`]).
-pub const PICTURE_TRACK_MAX_RMS_PX: f64 = 1.0;
+/// tenths of a pixel (0.16-0.26 px on the `picture` set at 480x270); above this RMS (pixels)
+/// the patches may have locked onto the wrong place (seen: a prediction 6 frames stale, 2.1 px
+/// RMS and 13 mm off; after the faster patch tracker, 0.69 px and 1.9 mm off), and the picture
+/// is looked for again ([`locate_checked`]; the lowest RMS of those tried is kept, so a noisy
+/// frame costs a detection, never its pose).
+pub const PICTURE_TRACK_MAX_RMS_PX: f64 = 0.5;
 
 /// [`ImageTarget::locate`], checked: a tracked sighting whose fit exceeds
 /// [`PICTURE_TRACK_MAX_RMS_PX`] is tracked once more from its own pose (a wrong lock near the
