@@ -360,15 +360,24 @@ impl Tracker {
         time_s: f64,
     ) -> Result<TrackOutput, TrackError> {
         let board_pose = self.board_pose(&detections, time_s)?;
-        let observed = board_pose.as_ref().and_then(|bp| {
-            let c = match &self.last_pose {
-                Some(prev) => bp.estimate.choose_consistent(prev),
-                None => bp.estimate.best,
-            };
-            (c.rms_px <= self.config.max_rms_px).then_some((c, bp))
-        });
-        let observed = observed.map(|(c, bp)| (c, bp.correspondences.clone(), bp.used_ids.clone()));
+        let observed =
+            board_pose.and_then(|bp| self.accept(&bp.estimate, bp.correspondences, bp.used_ids));
         Ok(self.step(observed, detections, time_s))
+    }
+
+    /// This frame's pose from `estimate`: the planar solution consistent with the last pose,
+    /// accepted when its RMS is within [`TrackerConfig::max_rms_px`].
+    fn accept(
+        &self,
+        estimate: &crate::pose::PoseEstimate,
+        pairs: Vec<(glam::DVec3, DVec2)>,
+        ids: Vec<u32>,
+    ) -> Option<Observed> {
+        let c = match &self.last_pose {
+            Some(prev) => estimate.choose_consistent(prev),
+            None => estimate.best,
+        };
+        (c.rms_px <= self.config.max_rms_px).then_some((c, pairs, ids))
     }
 
     /// One frame of a picture target: tracking from the predicted pose, else detection; with
@@ -407,13 +416,7 @@ impl Tracker {
             (None, Some(bp)) => Some((bp.estimate, bp.correspondences, bp.used_ids)),
             (None, None) => None,
         };
-        let observed = joint.and_then(|(estimate, pairs, ids)| {
-            let c = match &self.last_pose {
-                Some(prev) => estimate.choose_consistent(prev),
-                None => estimate.best,
-            };
-            (c.rms_px <= self.config.max_rms_px).then_some((c, pairs, ids))
-        });
+        let observed = joint.and_then(|(estimate, pairs, ids)| self.accept(&estimate, pairs, ids));
         let mut out = self.step(observed, detections, time_s);
         out.used_roi = tracked && out.raw.is_some();
         let corner_pose = out.raw.map(|c| c.pose).or(out.pose);

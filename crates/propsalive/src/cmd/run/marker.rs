@@ -24,9 +24,11 @@ pub fn track_target(
     let Some((path, width_m)) = shot_config::marker_picture(shot, shot_path)? else {
         return Ok((TrackTarget::Board(board.clone()), None));
     };
+    // Read once: the same bytes are decoded and hashed.
+    let budget = pa_video::still::StillBudget::default();
     let bytes = pa_io::read_regular(&path, MAX_PICTURE_BYTES, "a marker picture")
         .with_context(|| format!("{}: [marker] image", shot_path.display()))?;
-    let img = pa_video::still::read_still(&path, &Default::default())
+    let img = pa_video::still::decode_still(&path, &bytes, &budget)
         .with_context(|| format!("marker picture {}", path.display()))?
         .to_luma8();
     let gray = GrayImage::from(&img);
