@@ -351,9 +351,9 @@ pub struct Shot {
     pub texture: ShotTexture,
 }
 
-/// The shot's `[texture]`: relighting and feathered seams (`crate::ar::LiveLook`), both off
-/// unless the shot asks.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// The shot's `[texture]`: relighting and feathered seams (`crate::ar::LiveLook`), both on
+/// unless the shot switches them off (as [`crate::ar::ArSettings::ours`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ShotTexture {
     /// Shade live samples at the in-between's normal with the set's light.
@@ -362,10 +362,20 @@ pub struct ShotTexture {
     pub feather: bool,
 }
 
+impl Default for ShotTexture {
+    fn default() -> Self {
+        let look = crate::ar::ArSettings::ours().look;
+        Self {
+            relight: look.relight,
+            feather: look.feather,
+        }
+    }
+}
+
 impl ShotTexture {
-    /// Nothing asked (what the shot writer leaves out).
+    /// The defaults (what the shot writer leaves out).
     pub fn is_empty(&self) -> bool {
-        !self.relight && !self.feather
+        *self == Self::default()
     }
 
     /// The pipeline's look.
@@ -650,17 +660,22 @@ size_m = 0.05
     #[test]
     fn texture_table_sets_the_look_and_refuses_unknown_keys() {
         let (_d, p) = write(SHOT);
-        let plain = Shot::load(&p).expect("valid");
-        assert_eq!(plain.texture.look(), crate::ar::LiveLook::PLAIN);
-        assert!(!plain.to_toml().expect("toml").contains("[texture]"));
-
-        let (_d, p) = write(&format!(
-            "{SHOT}\n[texture]\nrelight = true\nfeather = true\n"
-        ));
         let lit = Shot::load(&p).expect("valid");
         assert_eq!(lit.texture.look(), crate::ar::LiveLook::RELIT_FEATHERED);
-        let again: Shot = toml::from_str(&lit.to_toml().expect("toml")).expect("parse");
-        assert_eq!(again, lit);
+        assert!(!lit.to_toml().expect("toml").contains("[texture]"));
+
+        let (_d, p) = write(&format!(
+            "{SHOT}\n[texture]\nrelight = false\nfeather = false\n"
+        ));
+        let plain = Shot::load(&p).expect("valid");
+        assert_eq!(plain.texture.look(), crate::ar::LiveLook::PLAIN);
+        let again: Shot = toml::from_str(&plain.to_toml().expect("toml")).expect("parse");
+        assert_eq!(again, plain);
+
+        // One key alone keeps the other's default.
+        let (_d, p) = write(&format!("{SHOT}\n[texture]\nfeather = false\n"));
+        let relit = Shot::load(&p).expect("valid");
+        assert!(relit.texture.relight && !relit.texture.feather);
 
         let (_d, p) = write(&format!("{SHOT}\n[texture]\nrelit = true\n"));
         let err = Shot::load(&p).expect_err("unknown key").to_string();

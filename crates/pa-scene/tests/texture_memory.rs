@@ -13,7 +13,7 @@
 
 use std::path::PathBuf;
 
-use pa_pipeline::ar::{ArFrame, ArSettings, Fill, RenderPath};
+use pa_pipeline::ar::{ArFrame, ArSettings, Fill, LiveLook, RenderPath};
 use pa_pipeline::metrics::psnr_region;
 use pa_render::{LiveSample, Renderer};
 
@@ -28,9 +28,13 @@ const W: u32 = 192;
 const H: u32 = 108;
 const FRAME: u32 = 20;
 
+/// The plain look (hard seams, not relit): with feathered seams a live pixel near a seam
+/// blends in the fallback, memory included, and relit the memory does not pay yet (README,
+/// "Texture memory").
 fn run(renderer: &mut Renderer, scene: &Scene, path: RenderPath, memory: bool) -> ArFrame {
     let settings = ArSettings {
         fill: Fill::None,
+        look: LiveLook::PLAIN,
         ..ArSettings::ours()
     };
     let mut p = pipeline_for(scene, renderer, settings).expect("pipeline");

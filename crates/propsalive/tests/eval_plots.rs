@@ -9,9 +9,9 @@ const CURVE_METHODS: [&str; 6] = [
     "paper (live, no visibility, rectangle fill)",
     "ours: live + visibility, ray fill",
     "ours, two key poses (frames 0 and 24)",
-    "ours: relit",
-    "ours: feathered seams",
-    "ours: relit + feathered seams",
+    "ours: plain look (not relit, hard seams)",
+    "ours: relit, hard seams",
+    "ours: feathered seams, not relit",
 ];
 
 /// Every method (the categories of the method chart).
@@ -27,9 +27,9 @@ const ALL_METHODS: [&str; 14] = [
     "ours, two key poses (frames 0 and 24)",
     "tripod camera: paper",
     "tripod camera: ours",
-    "ours: relit",
-    "ours: feathered seams",
-    "ours: relit + feathered seams",
+    "ours: plain look (not relit, hard seams)",
+    "ours: relit, hard seams",
+    "ours: feathered seams, not relit",
 ];
 
 fn read(path: &std::path::Path) -> String {

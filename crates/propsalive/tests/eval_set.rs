@@ -46,7 +46,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
         "| Blender: blender_bust | ours, patch fill, shadows |",
         "| Blender: blender_bust | ours: live + visibility, ray fill, shadows |",
         "| Blender: blender_bust | ours with clean plate, shadows |",
-        "| Blender: blender_bust | ours: relit + feathered seams |",
+        "| Blender: blender_bust | ours: plain look (not relit, hard seams) |",
         "| Blender: blender_bust | ours: + texture memory |",
     ] {
         let line = report
@@ -70,7 +70,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x (5 methods (rectangle, rays, relit, plate, patch) x shadows off and on, and
+    // 4 frames x (5 methods (rectangle, rays, plain look, plate, patch) x shadows off and on, and
     // rays with the texture memory).
     assert_eq!(json["frames"].as_array().map(Vec::len), Some(44));
     assert!(out.join("blender_bust/plate/0006.png").is_file());

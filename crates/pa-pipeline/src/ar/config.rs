@@ -118,7 +118,7 @@ impl LiveLook {
         relight: false,
         feather: false,
     };
-    /// Relighting and feathered seams.
+    /// Relighting and feathered seams (our default, [`ArSettings::ours`]).
     pub const RELIT_FEATHERED: Self = Self {
         relight: true,
         feather: true,
@@ -126,14 +126,15 @@ impl LiveLook {
 }
 
 impl ArSettings {
-    /// Our method: live texturing with visibility, ray fill, 4 px dilation, anti-aliased edges.
+    /// Our method: live texturing with visibility, relit with feathered seams, ray fill, 4 px
+    /// dilation, anti-aliased edges.
     pub fn ours() -> Self {
         Self {
             texturing: Texturing::Live { visibility: true },
             fill: Fill::Rays,
             dilate_px: 4,
             anti_alias: true,
-            look: LiveLook::PLAIN,
+            look: LiveLook::RELIT_FEATHERED,
         }
     }
 

@@ -174,12 +174,13 @@ impl NewShot {
         line("# input = \"scan\"");
         line("");
         line(
-            "# How the live texture becomes the twin's colour (optional): relight shades it at the",
+            "# How the live texture becomes the twin's colour (optional; both on by default): relight",
         );
-        line("# in-between's normals with the set's light; feather softens live/fallback seams.");
+        line("# shades it at the in-between's normals with the set's light; feather softens the");
+        line("# seams between live and fallback colour. false switches one off.");
         line("# [texture]");
-        line("# relight = true");
-        line("# feather = true");
+        line("# relight = false");
+        line("# feather = false");
         text
     }
 }

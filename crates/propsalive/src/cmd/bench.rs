@@ -124,12 +124,11 @@ pub enum Method {
     Plate,
     /// Ours with the patch fill (seeded by the previous frame's result from the second frame).
     Patch,
-    /// Ours, live samples relit at the in-between's normal, feathered seams.
-    Relit,
+    /// Ours with the plain look: live samples not relit, hard seams (the default before
+    /// relighting and feathered seams became ours).
+    Plain,
     /// Ours with the texture memory on (updated in the texture stage from every tracked frame).
     Memory,
-    /// Relit with feathered seams and the texture memory on.
-    RelitMemory,
     /// Ours with the board hidden under a cover picture (`[marker] hide = "cover"`).
     HideCover,
     /// Ours on the `picture` set: a printed picture as the marker, tracked by its natural
@@ -150,8 +149,8 @@ impl Method {
                 fill: Fill::Patch { plate: false },
                 ..ArSettings::ours()
             },
-            Method::Relit | Method::RelitMemory => ArSettings {
-                look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
+            Method::Plain => ArSettings {
+                look: pa_pipeline::ar::LiveLook::PLAIN,
                 ..ArSettings::ours()
             },
             Method::Memory | Method::HideCover | Method::Picture => ArSettings::ours(),
@@ -165,20 +164,19 @@ impl Method {
 
     /// Whether the texture memory is on ([`ArPipeline::set_texture_memory`]).
     fn memory(self) -> bool {
-        matches!(self, Method::Memory | Method::RelitMemory)
+        matches!(self, Method::Memory)
     }
 
     fn describe(self) -> &'static str {
         match self {
-            Method::Ours => "ours (live texturing + visibility, ray fill, 4 px dilation)",
+            Method::Ours => {
+                "ours (live texturing + visibility, relit, feathered seams, ray fill, 4 px dilation)"
+            }
             Method::Paper => "paper (live texturing, no visibility, rectangle fill)",
             Method::Plate => "ours with clean plate (live + visibility, plate fill)",
             Method::Patch => "ours with the patch fill (live + visibility, patch fill)",
-            Method::Relit => "ours, relit with feathered seams (live + visibility, ray fill)",
+            Method::Plain => "ours with the plain look (not relit, hard seams)",
             Method::Memory => "ours with the texture memory (live + visibility, ray fill)",
-            Method::RelitMemory => {
-                "ours, relit with feathered seams and the texture memory (live + visibility, ray fill)"
-            }
             Method::HideCover => "ours with the board hidden under a cover picture",
             Method::Picture => "ours on a picture marker (natural-feature tracking)",
         }

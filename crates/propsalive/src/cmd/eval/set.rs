@@ -95,9 +95,9 @@ fn fills() -> [(&'static str, ArSettings); 5] {
         ),
         ("ours: live + visibility, ray fill", ours),
         (
-            "ours: relit + feathered seams",
+            "ours: plain look (not relit, hard seams)",
             ArSettings {
-                look: pa_pipeline::ar::LiveLook::RELIT_FEATHERED,
+                look: pa_pipeline::ar::LiveLook::PLAIN,
                 ..ours
             },
         ),
