@@ -450,6 +450,48 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
             times_ms,
         });
     }
+    // The tracker per still (reset before each, as `run` tracks stills), with and without
+    // the decimated search first: its detections are what the pose is fitted to.
+    if let (Some(camera), Some(board)) = (&truth.camera, &truth.board) {
+        for (name, fast_first) in [
+            ("ours tracker per still, decimated search first", true),
+            ("ours tracker per still, full passes", false),
+        ] {
+            if only.as_ref().is_some_and(|o| !name.contains(o.as_str())) {
+                continue;
+            }
+            let mut tracker = pa_track::Tracker::new(
+                *camera,
+                pa_track::TrackTarget::Board(board.clone()),
+                DetectorConfig::default(),
+                pa_track::TrackerConfig {
+                    fast_first,
+                    ..pa_track::TrackerConfig::per_still()
+                },
+            )?;
+            let mut detections = Vec::new();
+            let mut times_ms = Vec::new();
+            pool.install(|| -> Result<(), pa_track::TrackError> {
+                tracker.update(&images[0], 0.0)?;
+                for image in &images {
+                    let mut last = Vec::new();
+                    for _ in 0..reps {
+                        let t = Instant::now();
+                        tracker.reset();
+                        last = tracker.update(image, 0.0)?.detections;
+                        times_ms.push(t.elapsed().as_secs_f64() * 1e3);
+                    }
+                    detections.push(last);
+                }
+                Ok(())
+            })?;
+            outcomes.push(Outcome {
+                name: format!("{name}, {threads} threads"),
+                detections,
+                times_ms,
+            });
+        }
+    }
     for spec in args
         .iter()
         .enumerate()

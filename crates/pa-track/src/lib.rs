@@ -79,7 +79,10 @@ pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
 pub use pose::{
     estimate_tag_pose, pose_noise, tag_object_points, Pose, PoseCandidate, PoseEstimate, PoseNoise,
 };
-pub use tracker::{TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig};
+pub use tracker::{
+    TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig, FAST_MIN_TAG_PX,
+    FAST_RECHECK_DETECTIONS,
+};
 
 /// Errors of the tracker. A frame without tags is not an error.
 #[derive(Debug, thiserror::Error)]

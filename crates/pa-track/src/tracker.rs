@@ -147,7 +147,28 @@ pub struct TrackerConfig {
     /// Reject poses with an RMS reprojection error above this (pixels).
     pub max_rms_px: f64,
     pub filter: PoseFilterConfig,
+    /// Detect each frame's tags with the quad search at decimation 2 first
+    /// ([`DetectorConfig::fast`]'s passes, with the configured families and thresholds), and
+    /// run the configured detector's full-resolution passes only when that may find more:
+    /// none of the board's tags found, or a board tag that lies wholly inside the frame at
+    /// the pose they give is missing and smaller than [`FAST_MIN_TAG_PX`] (too small for
+    /// the decimated search) and was not missed by the last full detection too (hidden), or
+    /// [`FAST_RECHECK_DETECTIONS`] frames since the last full detection. Only with a
+    /// detector whose first pass is at full resolution. Off by default: faster, and more
+    /// accurate on sharp frames, but on noisy frames the video filter fed by it is no longer
+    /// better than a still's own pose (README, "The decimated search first").
+    pub fast_first: bool,
 }
+
+/// Side (pixels) under which a board tag may be missed by the decimated quad search (it
+/// finds tags of about 27 px and up on the conformance photos, as the AprilTag C library at
+/// `quad_decimate = 2`); [`TrackerConfig::fast_first`] runs the full passes when such a tag
+/// is in view and was not found.
+pub const FAST_MIN_TAG_PX: f64 = 48.0;
+
+/// With [`TrackerConfig::fast_first`], the full passes run again after this many frames
+/// detected by the decimated search alone, so that a hidden small tag seen again is used.
+pub const FAST_RECHECK_DETECTIONS: u32 = 12;
 
 impl TrackerConfig {
     /// Stills of a stop-motion take (the camera jumps between them; the tracker is reset
@@ -176,6 +197,7 @@ impl Default for TrackerConfig {
             roi_margin: 0.5,
             max_rms_px: 3.0,
             filter: PoseFilterConfig::default(),
+            fast_first: false,
         }
     }
 }
@@ -212,6 +234,13 @@ pub struct Tracker {
     board: Board,
     image: Option<Box<ImageTarget>>,
     detector: Detector,
+    /// The decimated detector of [`TrackerConfig::fast_first`].
+    fast: Option<Detector>,
+    /// Small board tags in view that the last full detection missed too (hidden); kept
+    /// across [`Tracker::reset`]: what hides them (the key prop) stands on the board.
+    hidden_small: Vec<u32>,
+    /// Detections by the decimated search alone since the last full one.
+    since_full: u32,
     filter: PoseFilter,
     state: TrackState,
     seen: u32,
@@ -245,11 +274,25 @@ impl Tracker {
         if !detector.families.contains(&board.family) {
             detector.families.push(board.family);
         }
+        let fast = (config.fast_first && detector.decimate == 1 && !detector.upsample_pass)
+            .then(|| {
+                Detector::new(DetectorConfig {
+                    decimate: 2,
+                    second_pass_decimate: None,
+                    // A frame without tags runs the full detector, fallback included.
+                    fallback_decimate: None,
+                    ..detector.clone()
+                })
+            })
+            .transpose()?;
         Ok(Self {
             config,
             camera,
             board,
             image,
+            fast,
+            hidden_small: Vec::new(),
+            since_full: 0,
             detector: Detector::new(detector)?,
             filter: PoseFilter::new(config.filter),
             state: TrackState::Searching,
@@ -318,20 +361,90 @@ impl Tracker {
                 let (x0, y0) = (x0.clamp(0.0, w - 1.0), y0.clamp(0.0, h - 1.0));
                 let (x1, y1) = (x1.clamp(0.0, w), y1.clamp(0.0, h));
                 if x1 - x0 >= 16.0 && y1 - y0 >= 16.0 && (x1 - x0) * (y1 - y0) < 0.6 * w * h {
-                    let d = self.detector.detect_roi(
-                        frame,
+                    let roi = [
                         x0 as u32,
                         y0 as u32,
                         (x1 - x0).ceil() as u32,
                         (y1 - y0).ceil() as u32,
-                    )?;
+                    ];
+                    let d = self.detect_in(frame, Some(roi))?;
                     if d.iter().any(|d| self.board.contains(d)) {
                         return Ok((d, true));
                     }
                 }
             }
         }
-        Ok((self.detector.detect(frame)?, false))
+        Ok((self.detect_in(frame, None)?, false))
+    }
+
+    /// Tags in the frame (or in `roi`, `[x, y, width, height]`): the decimated search first
+    /// when it suffices ([`TrackerConfig::fast_first`]), else the configured detector.
+    fn detect_in(
+        &mut self,
+        frame: &GrayImage,
+        roi: Option<[u32; 4]>,
+    ) -> Result<Vec<Detection>, TrackError> {
+        let run = |d: &mut Detector| match roi {
+            Some([x, y, w, h]) => d.detect_roi(frame, x, y, w, h),
+            None => d.detect(frame),
+        };
+        let (w, h) = (frame.width, frame.height);
+        let Some(fast) = self.fast.as_mut() else {
+            return run(&mut self.detector);
+        };
+        if self.since_full < FAST_RECHECK_DETECTIONS {
+            let found = run(fast)?;
+            let missing = self.small_missing(&found, w, h);
+            if missing.is_some_and(|m| m.iter().all(|id| self.hidden_small.contains(id))) {
+                self.since_full += 1;
+                return Ok(found);
+            }
+        }
+        let full = run(&mut self.detector)?;
+        self.since_full = 0;
+        // Small tags in view that the full passes missed too are hidden (by the prop, a
+        // hand): until the next recheck the decimated search need not find them.
+        self.hidden_small = self.small_missing(&full, w, h).unwrap_or_default();
+        Ok(full)
+    }
+
+    /// The board's tags that `found` lacks although they lie wholly inside the `width` x
+    /// `height` frame at the pose `found` gives and are under [`FAST_MIN_TAG_PX`] a side
+    /// there (what the decimated search may miss); `None` when `found` gives no pose.
+    fn small_missing(&self, found: &[Detection], width: u32, height: u32) -> Option<Vec<u32>> {
+        let bp = self
+            .board
+            .estimate_pose_robust(&self.camera, found, None)
+            .ok()
+            .flatten()?;
+        let pose = bp.estimate.best.pose;
+        let (w, h) = (width as f64 - 0.5, height as f64 - 0.5);
+        let seen = |id: u32| found.iter().any(|d| d.id == id && self.board.contains(d));
+        let small = |tag: &crate::board::BoardTag| {
+            let mut px = [DVec2::ZERO; 4];
+            for (p, q) in px.iter_mut().zip(tag.object_points()) {
+                let c = pose.transform_point(q);
+                match self.camera.pixel_from_camera(c) {
+                    Some(v) if c.z > 0.0 && v.x >= -0.5 && v.y >= -0.5 && v.x <= w && v.y <= h => {
+                        *p = v
+                    }
+                    // Not wholly in the frame: no pass decodes it.
+                    _ => return false,
+                }
+            }
+            let side = (0..4)
+                .map(|i| px[i].distance(px[(i + 1) % 4]))
+                .fold(f64::INFINITY, f64::min);
+            side < FAST_MIN_TAG_PX
+        };
+        Some(
+            self.board
+                .tags
+                .iter()
+                .filter(|t| !seen(t.id) && small(t))
+                .map(|t| t.id)
+                .collect(),
+        )
     }
 
     /// The board's pose from `detections` (`None` when too few of its tags, or degenerate

@@ -116,7 +116,8 @@ pub struct Args {
 /// Which pipeline settings the bench times.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Method {
-    /// Live texturing with visibility, ray fill, 4 px dilation (ArSettings::ours).
+    /// Live texturing with visibility, relit with feathered seams, ray fill, 4 px dilation
+    /// (ArSettings::ours).
     Ours,
     /// The paper's: live texturing without visibility, rectangle fill.
     Paper,
