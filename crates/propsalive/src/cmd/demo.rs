@@ -145,7 +145,7 @@ pub fn run(args: Args) -> Result<()> {
     let tracked = metrics.iter().filter(|m| m.tracked).count();
     let report = format!(
         "# Props Alive demo\n\n{} frames at {w}x{h}, built-in bust, one key pose (frame 0), \
-         live texturing with visibility, ray fill, real tracker.\n\n\
+         live texturing with visibility, relit with feathered seams, ray fill, real tracker.\n\n\
          | measure | value |\n|---|---|\n\
          | frames tracked | {tracked} / {} |\n\
          | prop region PSNR (mean) | {:.2} dB |\n\
