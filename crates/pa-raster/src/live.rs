@@ -189,7 +189,9 @@ pub fn live_lookup_weighted(
     pa: Vec3,
     na: Vec3,
 ) -> (u8, [f32; 2], f32) {
-    use crate::look::{ramp, EDGE_FEATHER_PX, FACING_FEATHER_COS, STRETCH_FEATHER};
+    use crate::look::{
+        ramp, EDGE_FEATHER_PX, FACING_FEATHER_COS, FULL_WEIGHT_MIN, STRETCH_FEATHER,
+    };
     let cam = &p.frame_camera;
     // (Written so that NaN fails every test.)
     let in_front = pc.z > 1e-6;
@@ -259,6 +261,11 @@ pub fn live_lookup_weighted(
             weight *= ramp(1.0 + tolerance - pc.z * inv_z, tolerance);
         }
     }
+    let weight = if weight >= FULL_WEIGHT_MIN {
+        1.0
+    } else {
+        weight
+    };
     (code::VALID, pixel, weight)
 }
 
@@ -370,6 +377,9 @@ mod tests {
         assert!((px[0] - 96.5).abs() < 1e-4);
         assert!((we - 0.5).abs() < 0.01, "{we}");
         // Depth: tolerance 0.5 % + 1 mm at 1 m = 0.006; half-way to the occlusion limit.
+        // A surface a rounding error behind the map's depth: its ramp (0.99999) counts as 1.
+        let rounding = Vec3::new(0.0, 0.0, 1.000_01);
+        assert_eq!(w(&p, &map, rounding, toward, rounding, toward).2, 1.0);
         let behind = Vec3::new(0.0, 0.0, 1.003);
         let wd = w(&p, &map, behind, toward, behind, toward).2;
         assert!((wd - 0.5).abs() < 0.01, "{wd}");

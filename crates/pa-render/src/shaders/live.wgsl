@@ -164,6 +164,7 @@ struct LiveLookup {
 const EDGE_FEATHER_PX: f32 = 6.0;
 const FACING_FEATHER_COS: f32 = 0.25;
 const STRETCH_FEATHER: f32 = 0.5;
+const FULL_WEIGHT_MIN: f32 = 0.998046875; // 1 - 1/512
 // Relighting ratio clamp and irradiance floor.
 const RELIGHT_MIN: f32 = 0.7;
 const RELIGHT_MAX: f32 = 2.0;
@@ -286,7 +287,7 @@ fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> Li
         }
     }
     out.code = LIVE_VALID;
-    out.weight = weight;
+    out.weight = select(weight, 1.0, weight >= FULL_WEIGHT_MIN);
     return out;
 }
 
