@@ -393,6 +393,32 @@ fn read_c_output(path: &Path, n_frames: usize) -> Res<(Vec<Vec<Detection>>, Vec<
     Ok((dets, times))
 }
 
+/// Runs `detect` `reps` times on every image on `pool`, after one untimed call on the first
+/// (buffers sized, pages touched): the last run's detections per image, and every run's time
+/// (ms).
+fn time_detections(
+    pool: &rayon::ThreadPool,
+    images: &[GrayImage],
+    reps: usize,
+    mut detect: impl FnMut(&GrayImage) -> Result<Vec<Detection>, pa_track::TrackError> + Send,
+) -> Result<(Vec<Vec<Detection>>, Vec<f64>), pa_track::TrackError> {
+    pool.install(|| {
+        detect(&images[0])?;
+        let mut detections = Vec::new();
+        let mut times_ms = Vec::new();
+        for image in images {
+            let mut last = Vec::new();
+            for _ in 0..reps {
+                let t = Instant::now();
+                last = detect(image)?;
+                times_ms.push(t.elapsed().as_secs_f64() * 1e3);
+            }
+            detections.push(last);
+        }
+        Ok((detections, times_ms))
+    })
+}
+
 fn run(dir: &Path, args: &[String]) -> Res<()> {
     let threads: usize = arg_value(args, "--threads").map_or(Ok(2), |v| v.parse())?;
     let reps: usize = arg_value(args, "--reps").map_or(Ok(5), |v| v.parse())?;
@@ -428,22 +454,8 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
             continue;
         }
         let mut detector = Detector::new(cfg)?;
-        let mut detections = Vec::new();
-        let mut times_ms = Vec::new();
-        pool.install(|| -> Result<(), pa_track::TrackError> {
-            // Warm-up: buffers sized, pages touched.
-            detector.detect(&images[0])?;
-            for image in &images {
-                let mut last = Vec::new();
-                for _ in 0..reps {
-                    let t = Instant::now();
-                    last = detector.detect(image)?;
-                    times_ms.push(t.elapsed().as_secs_f64() * 1e3);
-                }
-                detections.push(last);
-            }
-            Ok(())
-        })?;
+        let (detections, times_ms) =
+            time_detections(&pool, &images, reps, |image| detector.detect(image))?;
         outcomes.push(Outcome {
             name: format!("{name}, {threads} threads"),
             detections,
@@ -469,21 +481,9 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
                     ..pa_track::TrackerConfig::per_still()
                 },
             )?;
-            let mut detections = Vec::new();
-            let mut times_ms = Vec::new();
-            pool.install(|| -> Result<(), pa_track::TrackError> {
-                tracker.update(&images[0], 0.0)?;
-                for image in &images {
-                    let mut last = Vec::new();
-                    for _ in 0..reps {
-                        let t = Instant::now();
-                        tracker.reset();
-                        last = tracker.update(image, 0.0)?.detections;
-                        times_ms.push(t.elapsed().as_secs_f64() * 1e3);
-                    }
-                    detections.push(last);
-                }
-                Ok(())
+            let (detections, times_ms) = time_detections(&pool, &images, reps, |image| {
+                tracker.reset();
+                Ok(tracker.update(image, 0.0)?.detections)
             })?;
             outcomes.push(Outcome {
                 name: format!("{name}, {threads} threads"),

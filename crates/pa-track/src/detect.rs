@@ -265,9 +265,7 @@ impl Detection {
 
     /// The shortest side in pixels.
     pub fn min_side_px(&self) -> f64 {
-        (0..4)
-            .map(|i| self.corners_px[i].distance(self.corners_px[(i + 1) % 4]))
-            .fold(f64::INFINITY, f64::min)
+        min_side_px(&self.corners_px)
     }
 }
 
@@ -752,6 +750,13 @@ fn merge_new(out: &mut Vec<Detection>, new: Vec<Detection>) {
 /// A tag cut by the frame edge can still decode, with a corner on the edge and wrong by many
 /// pixels; a whole tag has its quiet zone inside the frame, so its corners are at least a
 /// pixel from the edge. Detections with a corner closer than that are dropped.
+/// The shortest side of a quadrilateral given by its corners in order, pixels.
+pub(crate) fn min_side_px(corners: &[DVec2; 4]) -> f64 {
+    (0..4)
+        .map(|i| corners[i].distance(corners[(i + 1) % 4]))
+        .fold(f64::INFINITY, f64::min)
+}
+
 fn inside_frame(d: &Detection, image: &GrayImage) -> bool {
     let (w, h) = (image.width as f64, image.height as f64);
     d.corners_px

@@ -423,19 +423,14 @@ impl Tracker {
         let small = |tag: &crate::board::BoardTag| {
             let mut px = [DVec2::ZERO; 4];
             for (p, q) in px.iter_mut().zip(tag.object_points()) {
-                let c = pose.transform_point(q);
-                match self.camera.pixel_from_camera(c) {
-                    Some(v) if c.z > 0.0 && v.x >= -0.5 && v.y >= -0.5 && v.x <= w && v.y <= h => {
-                        *p = v
-                    }
+                // (None behind the camera.)
+                match self.camera.pixel_from_camera(pose.transform_point(q)) {
+                    Some(v) if v.x >= -0.5 && v.y >= -0.5 && v.x <= w && v.y <= h => *p = v,
                     // Not wholly in the frame: no pass decodes it.
                     _ => return false,
                 }
             }
-            let side = (0..4)
-                .map(|i| px[i].distance(px[(i + 1) % 4]))
-                .fold(f64::INFINITY, f64::min);
-            side < FAST_MIN_TAG_PX
+            crate::detect::min_side_px(&px) < FAST_MIN_TAG_PX
         };
         Some(
             self.board
