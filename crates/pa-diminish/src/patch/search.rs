@@ -124,34 +124,69 @@ fn vote(lv: &mut Level, field: &[u32], r: i32, out: &mut Vec<[f32; 3]>) {
 }
 
 fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
-    let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
+    let (w, h) = (lv.w as i32, lv.h as i32);
+    let (px, py) = xy(lv, p);
+    // `p`'s own match: a neighbour whose match continues it (most of them, in a coherent
+    // field) implies exactly that source, found without dividing.
+    let f = field[p] as usize;
+    let (fx, _) = xy(lv, f);
+    let own = lv.state[p] == HOLE && lv.state[f] == KNOWN;
     let mut sum = [0.0f32; 3];
-    let mut n = 0.0f32;
+    let mut count = 0.0f32;
     for dy in -r..=r {
+        let ny = py + dy;
+        if ny < 0 || ny >= h {
+            continue;
+        }
         for dx in -r..=r {
-            let Some(s) = implied_source(lv, field, (px, py), (dx, dy)) else {
+            let nx = px + dx;
+            if nx < 0 || nx >= w {
                 continue;
+            }
+            let n = (ny * w + nx) as usize;
+            if lv.state[n] != HOLE {
+                continue;
+            }
+            let m = field[n] as i32;
+            let s = if own && m == f as i32 + dy * w + dx && fx + dx >= 0 && fx + dx < w {
+                f
+            } else {
+                let (sx, sy) = (m % w - dx, m / w - dy);
+                if sx < 0 || sy < 0 || sx >= w || sy >= h {
+                    continue;
+                }
+                let s = (sy * w + sx) as usize;
+                if lv.state[s] != KNOWN {
+                    continue;
+                }
+                s
             };
             add(&mut sum, lv.color[s]);
-            n += 1.0;
+            count += 1.0;
         }
     }
-    if n > 0.0 {
-        sum.map(|v| v / n)
+    if count > 0.0 {
+        sum.map(|v| v / count)
     } else {
         lv.color[p]
     }
 }
 
+/// Column and row of pixel `i` of `lv`.
+fn xy(lv: &Level, i: usize) -> (i32, i32) {
+    ((i % lv.w) as i32, (i / lv.w) as i32)
+}
+
 /// The source that the hole pixel at `(px + dx, py + dy)` implies for `(px, py)`: its match
 /// shifted back by `(dx, dy)`, when the neighbour lies inside the level and is a hole pixel,
 /// and that source lies inside the level and is known (PatchMatch's propagation, the vote).
+/// Returns the source's index, column and row.
 fn implied_source(
     lv: &Level,
     field: &[u32],
     (px, py): (i32, i32),
     (dx, dy): (i32, i32),
-) -> Option<usize> {
+) -> Option<(usize, i32, i32)> {
     let (w, h) = (lv.w as i32, lv.h as i32);
     let (nx, ny) = (px + dx, py + dy);
     if nx < 0 || ny < 0 || nx >= w || ny >= h {
@@ -167,7 +202,7 @@ fn implied_source(
         return None;
     }
     let s = (sy * w + sx) as usize;
-    (lv.state[s] == KNOWN).then_some(s)
+    (lv.state[s] == KNOWN).then_some((s, sx, sy))
 }
 
 fn cost_of(params: &PatchParams, level: usize) -> Cost {
@@ -206,12 +241,18 @@ fn greedy_start(lv: &mut Level, field: &mut [u32], cost: &Cost, rng: &mut Rng) {
     let order = std::mem::take(&mut lv.order);
     for &p in &order {
         let p = p as usize;
-        let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
-        let mut best = lv.sources[rng.below(lv.sources.len())] as usize;
-        let mut best_cost = total_cost(lv, field, cost, p, best, f32::INFINITY);
-        let consider = |lv: &Level, s: usize, best: &mut usize, best_cost: &mut f32| {
-            if s != *best && lv.state[s] == KNOWN {
-                let c = total_cost(lv, field, cost, p, s, *best_cost);
+        let (px, py) = xy(lv, p);
+        let target = (p, px, py);
+        let first = lv.sources[rng.below(lv.sources.len())] as usize;
+        let (fx, fy) = xy(lv, first);
+        let mut best = (first, fx, fy);
+        let mut best_cost = total_cost(lv, field, cost, target, best, f32::INFINITY);
+        let consider = |lv: &Level,
+                        s: (usize, i32, i32),
+                        best: &mut (usize, i32, i32),
+                        best_cost: &mut f32| {
+            if s.0 != best.0 && lv.state[s.0] == KNOWN {
+                let c = total_cost(lv, field, cost, target, s, *best_cost);
                 if c < *best_cost {
                     *best = s;
                     *best_cost = c;
@@ -230,16 +271,22 @@ fn greedy_start(lv: &mut Level, field: &mut [u32], cost: &Cost, rng: &mut Rng) {
         }
         for _ in 0..START_RANDOM {
             let s = lv.sources[rng.below(lv.sources.len())] as usize;
-            consider(lv, s, &mut best, &mut best_cost);
+            let (sx, sy) = xy(lv, s);
+            consider(lv, (s, sx, sy), &mut best, &mut best_cost);
         }
         let mut r = lv.w.max(lv.h) as i32 / 2;
         while r >= 1 {
-            let (bx, by) = ((best % lv.w) as i32, (best / lv.w) as i32);
-            let sx = (bx + rng.offset(r)).clamp(0, w - 1);
-            let sy = (by + rng.offset(r)).clamp(0, h - 1);
-            consider(lv, (sy * w + sx) as usize, &mut best, &mut best_cost);
+            let sx = (best.1 + rng.offset(r)).clamp(0, w - 1);
+            let sy = (best.2 + rng.offset(r)).clamp(0, h - 1);
+            consider(
+                lv,
+                ((sy * w + sx) as usize, sx, sy),
+                &mut best,
+                &mut best_cost,
+            );
             r /= 2;
         }
+        let best = best.0;
         field[p] = best as u32;
         lv.color[p] = lv.color[best];
         lv.state[p] = HOLE;
@@ -372,17 +419,20 @@ fn improve(
     rng: &mut Rng,
 ) -> usize {
     let (w, h) = (lv.w as i32, lv.h as i32);
-    let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
-    let mut best = field[p] as usize;
-    let mut best_cost = total_cost(lv, field, cost, p, best, f32::INFINITY);
+    let (px, py) = xy(lv, p);
+    let target = (p, px, py);
+    let f = field[p] as usize;
+    let (fx, fy) = xy(lv, f);
+    let mut best = (f, fx, fy);
+    let mut best_cost = total_cost(lv, field, cost, target, best, f32::INFINITY);
     for &(dx, dy) in dirs {
         let Some(s) = implied_source(lv, field, (px, py), (dx, dy)) else {
             continue;
         };
-        if s == best {
+        if s.0 == best.0 {
             continue;
         }
-        let c = total_cost(lv, field, cost, p, s, best_cost);
+        let c = total_cost(lv, field, cost, target, s, best_cost);
         if c < best_cost {
             best = s;
             best_cost = c;
@@ -390,29 +440,35 @@ fn improve(
     }
     let mut r = search_r;
     while r >= 1 {
-        let (bx, by) = ((best % lv.w) as i32, (best / lv.w) as i32);
-        let sx = (bx + rng.offset(r)).clamp(0, w - 1);
-        let sy = (by + rng.offset(r)).clamp(0, h - 1);
+        let sx = (best.1 + rng.offset(r)).clamp(0, w - 1);
+        let sy = (best.2 + rng.offset(r)).clamp(0, h - 1);
         let s = (sy * w + sx) as usize;
-        if s != best && lv.state[s] == KNOWN {
-            let c = total_cost(lv, field, cost, p, s, best_cost);
+        if s != best.0 && lv.state[s] == KNOWN {
+            let c = total_cost(lv, field, cost, target, (s, sx, sy), best_cost);
             if c < best_cost {
-                best = s;
+                best = (s, sx, sy);
                 best_cost = c;
             }
         }
         r /= 2;
     }
-    best
+    best.0
 }
 
-/// The cost of matching hole `p` to source `s`; stops early (returning at least `bound`) once
-/// the partial sum exceeds `bound`.
-fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound: f32) -> f32 {
+/// The cost of matching hole `p` (index, column, row) to source `s` (the same); stops early
+/// (returning at least `bound`) once the partial sum exceeds `bound`.
+fn total_cost(
+    lv: &Level,
+    field: &[u32],
+    cost: &Cost,
+    (p, px, py): (usize, i32, i32),
+    (s, sx, sy): (usize, i32, i32),
+    bound: f32,
+) -> f32 {
     let (w, h) = (lv.w as i32, lv.h as i32);
-    let (px, py) = ((p % lv.w) as i32, (p / lv.w) as i32);
-    let (sx, sy) = ((s % lv.w) as i32, (s / lv.w) as i32);
-    // Spatial and temporal first (cheap).
+    // Spatial and temporal first (cheap). A neighbour's match differs from the continuation
+    // `s + (n - p)` by whole pixels: 0 when it continues it (found without dividing), else at
+    // least 1, which the cap `tau` (when at most 1) saturates.
     let mut spatial = 0.0f32;
     for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
         let (nx, ny) = (px + dx, py + dy);
@@ -424,8 +480,16 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
             continue;
         }
         let m = field[n] as i32;
-        let (ex, ey) = ((sx + dx - m % w) as f32, (sy + dy - m / w) as f32);
-        spatial += (ex * ex + ey * ey).min(cost.tau);
+        let (cx, cy) = (sx + dx, sy + dy);
+        let continues = cx >= 0 && cx < w && cy >= 0 && cy < h && m == cy * w + cx;
+        if !continues {
+            spatial += if cost.tau <= 1.0 {
+                cost.tau
+            } else {
+                let (ex, ey) = ((cx - m % w) as f32, (cy - m / w) as f32);
+                (ex * ex + ey * ey).min(cost.tau)
+            };
+        }
     }
     let mut total = cost.lambda * spatial;
     if !lv.prior_ok.is_empty() && lv.prior_ok[p] {
@@ -446,6 +510,12 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
     let mut sum = 0.0f32;
     let mut n = 0u32;
     let inv_max = 1.0 / ((2 * r + 1) * (2 * r + 1) - 1).max(1) as f32;
+    // The patch's columns inside the level, and the source's columns they pair with (shift
+    // `sx - px`); when those lie inside the level too (nearly always), a row is a run of
+    // pairs without clamping or bounds checks, summed in the same order as the general case.
+    let (tx0, tx1) = ((px - r).max(0), (px + r).min(w - 1));
+    let shift = sx - px;
+    let unclamped = tx0 + shift >= 0 && tx1 + shift < w;
     for dy in -r..=r {
         if total + sum * inv_max >= bound {
             return bound;
@@ -457,16 +527,53 @@ fn total_cost(lv: &Level, field: &[u32], cost: &Cost, p: usize, s: usize, bound:
         let qy = (sy + dy).clamp(0, h - 1);
         let trow = (ty * w) as usize;
         let srow = (qy * w) as usize;
-        for dx in -r..=r {
-            let tx = px + dx;
-            if tx < 0 || tx >= w {
-                continue;
+        if unclamped {
+            let (t0, t1) = (trow + tx0 as usize, trow + tx1 as usize + 1);
+            let s0 = (srow as i32 + tx0 + shift) as usize;
+            let s1 = s0 + (t1 - t0);
+            // The centre (`p` itself) is left out: its column in the run, on row 0 only.
+            let centre = if dy == 0 {
+                (px - tx0) as usize
+            } else {
+                usize::MAX
+            };
+            let pairs = lv.color[t0..t1]
+                .iter()
+                .zip(&lv.state[t0..t1])
+                .zip(&lv.color[s0..s1])
+                .enumerate();
+            if labels {
+                let tl = &lv.label[t0..t1];
+                let sl = &lv.label[s0..s1];
+                for (i, ((a, &st), b)) in pairs {
+                    if i == centre || st == HIDDEN || st == UNSET {
+                        continue;
+                    }
+                    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+                    sum += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    if tl[i] != sl[i] {
+                        sum += cost.kappa;
+                    }
+                    n += 1;
+                }
+            } else {
+                for (i, ((a, &st), b)) in pairs {
+                    if i == centre || st == HIDDEN || st == UNSET {
+                        continue;
+                    }
+                    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+                    sum += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    n += 1;
+                }
             }
+            continue;
+        }
+        for tx in tx0..=tx1 {
             let t = trow + tx as usize;
             if t == p || lv.state[t] == HIDDEN || lv.state[t] == UNSET {
                 continue;
             }
-            let q = srow + (sx + dx).clamp(0, w - 1) as usize;
+            let q = srow + (tx + shift).clamp(0, w - 1) as usize;
             let (a, b) = (lv.color[t], lv.color[q]);
             let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
             sum += d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
