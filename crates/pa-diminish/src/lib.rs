@@ -21,9 +21,11 @@
 //!   known pixel along 8 or 16 rays; reproduces linear ramps exactly; O(N x M x rays) with one
 //!   raster pass a direction. See [`ray_fill`].
 //! * [`FillMethod::CleanPlate`] - the background seen without the prop, warped into the
-//!   current view by the table-plane homography, bilinearly sampled and gain-matched on a ring
-//!   around the mask; correct texture, not just a smooth guess. Pixels the plate does not
-//!   cover fall back to the ray fill. O(N x M) samples + O(ring). See [`plate`].
+//!   current view by the table-plane homography, aligned to the frame on a band around the
+//!   mask ([`plate_align`]: the homography of two tracked poses is off by their errors),
+//!   bilinearly sampled and gain-matched on a ring around the mask; correct texture, not just
+//!   a smooth guess. Pixels the plate does not cover fall back to the ray fill. O(N x M)
+//!   samples + O(ring + band). See [`plate`].
 //! * [`FillMethod::Patch`] - PixMix-class patch fill: every pixel copies one known pixel,
 //!   chosen by a nearest-neighbour field with an appearance and a spatial-coherence cost,
 //!   coarse to fine, so straight structures continue across the hole; optionally seeded by
@@ -45,6 +47,7 @@ pub mod mask;
 pub mod metrics;
 pub mod patch;
 pub mod plate;
+pub mod plate_align;
 pub mod ray_fill;
 pub mod rect_fill;
 pub mod shadow;
@@ -58,6 +61,7 @@ pub use mask::{dilate, dilate_in_bbox, dilate_in_place, mask_from_depth, DilateS
 pub use metrics::{mse_rgb, psnr_rgb};
 pub use patch::{PatchFill, PatchParams, PatchPrior};
 pub use plate::{CleanPlate, GainEstimate, GainModel, GainSpace, Homography};
+pub use plate_align::{PlateAlign, PlateAlignment};
 pub use ray_fill::RayDirections;
 pub use rect_fill::{baseline_rect, paper_rectangle_fill};
 pub use shadow::{cast_shadow, lift_shadow, measure_shadow, ShadowMatte, ShadowRatio};
@@ -102,6 +106,11 @@ pub struct FillStats {
     pub patched: usize,
     /// The photometric correction used by `CleanPlate` (and `Patch` with a plate).
     pub gain: Option<GainEstimate>,
+    /// What the plate's alignment found (`CleanPlate` and `Patch` with a plate, when
+    /// [`CleanPlate::align`] is set and the band around the mask had something to compare).
+    pub plate_alignment: Option<PlateAlignment>,
+    /// What the alignment of the patch fill's prior found ([`PatchFill::align_prior`]).
+    pub prior_alignment: Option<PlateAlignment>,
 }
 
 /// A fill engine that keeps its scratch buffers between frames.
@@ -111,6 +120,7 @@ pub struct Diminisher {
     rays: ray_fill::RayScratch,
     plate: plate::PlateScratch,
     patch: patch::PatchScratch,
+    align: plate_align::AlignScratch,
 }
 
 impl Diminisher {
@@ -186,7 +196,7 @@ impl Diminisher {
             }
             FillMethod::CleanPlate(cp) => {
                 mask::extract_into(mask, bbox, &mut self.to_fill);
-                let (from_plate, gain) = plate::plate_fill_region(
+                let (from_plate, gain, plate_alignment) = plate::plate_fill_region(
                     frame,
                     mask,
                     bbox,
@@ -211,14 +221,15 @@ impl Diminisher {
                     from_plate,
                     interpolated,
                     gain: Some(gain),
+                    plate_alignment,
                     ..FillStats::default()
                 })
             }
             FillMethod::Patch(pf) => {
                 mask::extract_into(mask, bbox, &mut self.to_fill);
-                let (from_plate, gain) = match &pf.plate {
+                let (from_plate, gain, plate_alignment) = match &pf.plate {
                     Some(cp) => {
-                        let (n, g) = plate::plate_fill_region(
+                        let (n, g, a) = plate::plate_fill_region(
                             frame,
                             mask,
                             bbox,
@@ -226,18 +237,49 @@ impl Diminisher {
                             cp,
                             &mut self.plate,
                         )?;
-                        (n, Some(g))
+                        (n, Some(g), a)
                     }
-                    None => (0, None),
+                    None => (0, None, None),
                 };
-                let patched =
-                    patch::patch_fill_region(frame, bbox, &mut self.to_fill, pf, &mut self.patch)?;
+                // The previous frame's result, aligned to this frame like a plate.
+                let prior_alignment = match (&pf.prior, &pf.align_prior) {
+                    (Some(prior), Some(params)) => {
+                        prior.current_from_previous.inverse()?;
+                        plate_align::align_plate(
+                            frame,
+                            mask,
+                            bbox,
+                            prior.image,
+                            prior.current_from_previous,
+                            params,
+                            &mut self.align,
+                        )
+                    }
+                    _ => None,
+                };
+                let aligned = PatchFill {
+                    prior: pf.prior.map(|p| PatchPrior {
+                        current_from_previous: prior_alignment
+                            .map_or(p.current_from_previous, |a| a.current_from_plate),
+                        ..p
+                    }),
+                    ..*pf
+                };
+                let patched = patch::patch_fill_region(
+                    frame,
+                    bbox,
+                    &mut self.to_fill,
+                    &aligned,
+                    &mut self.patch,
+                )?;
                 Ok(FillStats {
                     filled: from_plate + patched,
                     bbox: Some(bbox),
                     from_plate,
                     patched,
                     gain,
+                    plate_alignment,
+                    prior_alignment,
                     ..FillStats::default()
                 })
             }

@@ -18,6 +18,7 @@
 
 use crate::error::DiminishError;
 use crate::mask::{dilate_local, extract_into, DilateShape};
+use crate::plate_align::{align_plate, AlignScratch, PlateAlign, PlateAlignment};
 use crate::ray_fill::RayDirections;
 use crate::types::{ImageRgba8, Mask, Rect};
 use std::sync::OnceLock;
@@ -135,10 +136,14 @@ pub struct CleanPlate<'a> {
     pub ring_px: u32,
     /// Ray fill for pixels whose plate sample falls outside the plate.
     pub fallback: RayDirections,
+    /// Correct the homography's residual misalignment on the pixels around the mask before
+    /// sampling ([`crate::plate_align`]; `None`: use it as given).
+    pub align: Option<PlateAlign>,
 }
 
 impl<'a> CleanPlate<'a> {
-    /// Defaults: per-channel gain in linear light, a 4-pixel ring, 8-ray fallback.
+    /// Defaults: per-channel gain in linear light, a 4-pixel ring, 8-ray fallback, the
+    /// plate aligned to the frame ([`PlateAlign::default`]).
     pub fn new(plate: &'a ImageRgba8, current_from_plate: Homography) -> Self {
         Self {
             plate,
@@ -147,6 +152,7 @@ impl<'a> CleanPlate<'a> {
             gain_space: GainSpace::Linear,
             ring_px: 4,
             fallback: RayDirections::Eight,
+            align: Some(PlateAlign::default()),
         }
     }
 }
@@ -289,6 +295,7 @@ pub(crate) struct PlateScratch {
     inside: Vec<u8>,
     samples: Vec<[f32; 6]>,
     residuals: Vec<f32>,
+    align: AlignScratch,
 }
 
 /// Fits the gain on the ring around the mask inside `bbox` (tight bbox of the mask).
@@ -412,7 +419,7 @@ fn fit(samples: &[[f32; 6]], keep: &[bool], model: GainModel) -> GainEstimate {
 }
 
 /// Fills from the plate every set pixel of `to_fill` (local to `region`) whose plate sample is
-/// valid, clearing it. Returns (pixels filled, gain estimate).
+/// valid, clearing it. Returns (pixels filled, gain estimate, the alignment when asked for).
 pub(crate) fn plate_fill_region(
     frame: &mut ImageRgba8,
     mask: &Mask,
@@ -420,7 +427,35 @@ pub(crate) fn plate_fill_region(
     to_fill: &mut [u8],
     cp: &CleanPlate<'_>,
     scratch: &mut PlateScratch,
-) -> Result<(usize, GainEstimate), DiminishError> {
+) -> Result<(usize, GainEstimate, Option<PlateAlignment>), DiminishError> {
+    // Validates the homography before the alignment uses it.
+    cp.current_from_plate.inverse()?;
+    let alignment = cp.align.as_ref().and_then(|params| {
+        align_plate(
+            frame,
+            mask,
+            region,
+            cp.plate,
+            cp.current_from_plate,
+            params,
+            &mut scratch.align,
+        )
+    });
+    if let Some(a) = &alignment {
+        log::debug!(
+            "clean plate: alignment {} (moves {:.2} px; robust cost {:.2} -> {:.2} on {} px)",
+            if a.applied { "applied" } else { "rejected" },
+            a.shift_px,
+            a.cost_before,
+            a.cost_after,
+            a.samples
+        );
+    }
+    let aligned = CleanPlate {
+        current_from_plate: alignment.map_or(cp.current_from_plate, |a| a.current_from_plate),
+        ..*cp
+    };
+    let cp = &aligned;
     let plate_from_current = cp.current_from_plate.inverse()?;
     let space = Space::new(cp.gain_space);
     let est = estimate_gain(
@@ -458,5 +493,5 @@ pub(crate) fn plate_fill_region(
             filled += 1;
         }
     }
-    Ok((filled, est))
+    Ok((filled, est, alignment))
 }

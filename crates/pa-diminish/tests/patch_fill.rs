@@ -232,6 +232,7 @@ fn the_prior_keeps_a_static_scene_steady() {
             prior,
             plate: None,
             surfaces: None,
+            align_prior: None,
         });
         Diminisher::new()
             .fill(&mut f2, &m2, &method)

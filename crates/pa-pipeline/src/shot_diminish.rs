@@ -7,6 +7,7 @@
 //! # plate_frames = 3            # or: the first 3 stills of the take are plate
 //! dilation_px = 4               # growth of the key-pose silhouette (0..=64)
 //! shadows = false               # lift the prop's cast shadow, cast the twin's
+//! align_plate = true            # align the clean plate to each frame around the prop
 //! ```
 //!
 //! Every key is optional; without the table a shot does what it did before it existed (our
@@ -40,6 +41,8 @@ pub struct ShotDiminish {
     pub dilation_px: Option<i64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shadows: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub align_plate: Option<bool>,
 }
 
 impl ShotDiminish {
@@ -132,6 +135,7 @@ pub struct DiminishOverrides {
     pub plate_frames: Option<u32>,
     pub dilation_px: Option<i64>,
     pub shadows: Option<bool>,
+    pub align_plate: Option<bool>,
 }
 
 impl DiminishOverrides {
@@ -148,16 +152,20 @@ pub struct DiminishConfig {
     pub plate: Option<PlateSource>,
     pub dilation_px: u32,
     pub shadows: bool,
+    /// Align the clean plate to each frame ([`crate::ar::ArSettings::align_plate`]).
+    pub align_plate: bool,
 }
 
 impl Default for DiminishConfig {
-    /// Our method's (the pipeline's `ArSettings::ours`): rays, 4 px, no plate, no shadows.
+    /// Our method's (the pipeline's `ArSettings::ours`): rays, 4 px, no plate, no shadows, a
+    /// plate (when given) aligned to each frame.
     fn default() -> Self {
         Self {
             fill: FillName::Rays,
             plate: None,
             dilation_px: 4,
             shadows: false,
+            align_plate: true,
         }
     }
 }
@@ -182,10 +190,11 @@ impl DiminishConfig {
             Some(PlateSource::FirstFrames(n)) => format!("first {n} stills"),
         };
         format!(
-            "fill={} plate={plate} dilation_px={} shadows={}",
+            "fill={} plate={plate} dilation_px={} shadows={} align_plate={}",
             self.fill.name(),
             self.dilation_px,
-            self.shadows
+            self.shadows,
+            self.align_plate
         )
     }
 }
@@ -305,6 +314,7 @@ pub fn resolve(
         plate,
         dilation_px,
         shadows: flags.shadows.or(d.shadows).unwrap_or(false),
+        align_plate: flags.align_plate.or(d.align_plate).unwrap_or(true),
     })
 }
 

@@ -51,7 +51,8 @@ fn without_the_table_the_defaults_are_todays() {
 
 #[test]
 fn the_table_is_read_and_round_trips() {
-    let extra = "[diminish]\nfill = \"rectangle\"\ndilation_px = 7\nshadows = true\n";
+    let extra =
+        "[diminish]\nfill = \"rectangle\"\ndilation_px = 7\nshadows = true\nalign_plate = false\n";
     let (_d, p) = write(extra);
     let shot = Shot::load(&p).expect("valid");
     let again: Shot = toml::from_str(&shot.to_toml().expect("toml")).expect("parse");
@@ -59,10 +60,22 @@ fn the_table_is_read_and_round_trips() {
     let c = resolve(&shot.diminish, &DiminishOverrides::default(), &p).expect("config");
     assert_eq!(c.fill, FillName::Rectangle);
     assert_eq!((c.dilation_px, c.shadows, &c.plate), (7, true, &None));
+    assert!(!c.align_plate);
     assert_eq!(
         c.describe(),
-        "fill=rectangle plate=none dilation_px=7 shadows=true"
+        "fill=rectangle plate=none dilation_px=7 shadows=true align_plate=false"
     );
+    // Without the key the plate is aligned; a flag overrides the shot.
+    let flags = DiminishOverrides {
+        align_plate: Some(true),
+        ..DiminishOverrides::default()
+    };
+    assert!(
+        resolve(&shot.diminish, &flags, &p)
+            .expect("config")
+            .align_plate
+    );
+    assert!(DiminishConfig::default().align_plate);
 }
 
 #[test]
@@ -107,6 +120,7 @@ fn flags_override_the_shot() {
             plate: Some(PlateSource::FirstFrames(2)),
             dilation_px: 0,
             shadows: false,
+            align_plate: true,
         }
     );
 }

@@ -1,6 +1,7 @@
 //! The methods `propsalive eval` compares on the generated scenes: the paper's pipeline, each
-//! of our changes alone, ours in full, ours with a clean plate, the patch fill (alone and with
-//! the clean plate), the model's own texture, two
+//! of our changes alone, ours in full, ours with a clean plate (aligned to the frame, and as
+//! the tracked poses put it), the patch fill (alone and with the clean plate), the model's own
+//! texture, two
 //! key poses, the paper and ours on a tripod camera, and ours without relighting or feathered
 //! seams, with only one of them. The report's tables and curves are
 //! keyed by [`Method::name`] (curves are drawn for the methods named `ours:...`,
@@ -60,6 +61,16 @@ pub fn methods() -> Vec<Method> {
             name: "ours with clean plate",
             settings: ArSettings {
                 fill: Fill::CleanPlate,
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours with clean plate, not aligned",
+            settings: ArSettings {
+                fill: Fill::CleanPlate,
+                align_plate: false,
                 ..ours
             },
             key_frames: vec![0],
@@ -164,6 +175,7 @@ mod tests {
                 "live, no visibility, ray fill",
                 "ours: live + visibility, ray fill",
                 "ours with clean plate",
+                "ours with clean plate, not aligned",
                 "ours, patch fill",
                 "ours, patch fill with clean plate",
                 "model texture (no live sampling), ray fill",
@@ -176,25 +188,28 @@ mod tests {
             ]
         );
         let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
-        assert_eq!(keys[8], [0, 24]);
-        assert!(keys.iter().enumerate().all(|(i, k)| i == 8 || k == &[0]));
+        assert_eq!(keys[9], [0, 24]);
+        assert!(keys.iter().enumerate().all(|(i, k)| i == 9 || k == &[0]));
         let tripod = m
             .iter()
             .filter(|m| m.camera_path == CameraPath::Static)
             .count();
         assert_eq!(tripod, 2);
         assert!(matches!(m[4].settings.fill, Fill::CleanPlate));
-        assert!(matches!(m[5].settings.fill, Fill::Patch { plate: false }));
-        assert!(matches!(m[6].settings.fill, Fill::Patch { plate: true }));
-        assert!(matches!(m[7].settings.texturing, Texturing::ModelTexture));
+        assert!(m[4].settings.align_plate);
+        assert!(matches!(m[5].settings.fill, Fill::CleanPlate));
+        assert!(!m[5].settings.align_plate);
+        assert!(matches!(m[6].settings.fill, Fill::Patch { plate: false }));
+        assert!(matches!(m[7].settings.fill, Fill::Patch { plate: true }));
+        assert!(matches!(m[8].settings.texturing, Texturing::ModelTexture));
         let looks: Vec<_> = m.iter().map(|m| m.settings.look).collect();
         // Every row but the look's own ablations has our look (the paper's rows: plain).
         for (i, l) in looks.iter().enumerate() {
             let paper = m[i].name.contains("paper");
             match i {
-                11 => assert_eq!(*l, LiveLook::PLAIN),
-                12 => assert!(l.relight && !l.feather),
-                13 => assert!(!l.relight && l.feather),
+                12 => assert_eq!(*l, LiveLook::PLAIN),
+                13 => assert!(l.relight && !l.feather),
+                14 => assert!(!l.relight && l.feather),
                 _ if paper => assert_eq!(*l, LiveLook::PLAIN, "{}", m[i].name),
                 _ => assert_eq!(*l, LiveLook::RELIT_FEATHERED, "{}", m[i].name),
             }

@@ -15,12 +15,13 @@ const CURVE_METHODS: [&str; 6] = [
 ];
 
 /// Every method (the categories of the method chart).
-const ALL_METHODS: [&str; 14] = [
+const ALL_METHODS: [&str; 15] = [
     "paper (live, no visibility, rectangle fill)",
     "live + visibility, rectangle fill",
     "live, no visibility, ray fill",
     "ours: live + visibility, ray fill",
     "ours with clean plate",
+    "ours with clean plate, not aligned",
     "ours, patch fill",
     "ours, patch fill with clean plate",
     "model texture (no live sampling), ray fill",

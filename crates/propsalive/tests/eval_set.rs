@@ -42,6 +42,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
         "| Blender: blender_bust | ours, patch fill |",
         "| Blender: blender_bust | ours: live + visibility, ray fill |",
         "| Blender: blender_bust | ours with clean plate |",
+        "| Blender: blender_bust | ours with clean plate, not aligned |",
         "| Blender: blender_bust | live + visibility, rectangle fill, shadows |",
         "| Blender: blender_bust | ours, patch fill, shadows |",
         "| Blender: blender_bust | ours: live + visibility, ray fill, shadows |",
@@ -70,10 +71,11 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x (5 methods (rectangle, rays, plain look, plate, patch) x shadows off and on, and
-    // rays with the texture memory).
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(44));
+    // 4 frames x (6 methods (rectangle, rays, plain look, plate aligned and not, patch) x
+    // shadows off and on, and rays with the texture memory).
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(52));
     assert!(out.join("blender_bust/plate/0006.png").is_file());
+    assert!(out.join("blender_bust/plate_unaligned/0006.png").is_file());
     assert!(out.join("blender_bust/memory/0006.png").is_file());
     assert!(out.join("blender_bust/patch_shadows/0006.png").is_file());
     let svg = std::fs::read_to_string(out.join("fills.svg")).expect("fills.svg");

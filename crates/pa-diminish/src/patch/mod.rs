@@ -192,6 +192,10 @@ pub struct PatchFill<'a> {
     /// the sheet, 2 a tag): a source on another surface than its target costs
     /// [`PatchParams::surface_weight`] (see the module docs). Labels are read in the hole too.
     pub surfaces: Option<&'a Mask>,
+    /// Align the prior to the frame before using it, as a clean plate
+    /// ([`crate::plate_align`]: the homography between two tracked poses is off by their
+    /// errors); `None` (the default): use it as given.
+    pub align_prior: Option<crate::plate_align::PlateAlign>,
 }
 
 impl<'a> PatchFill<'a> {

@@ -99,6 +99,11 @@ pub struct ArSettings {
     /// How a live sample becomes the twin's colour (with visibility only: the light is
     /// measured then).
     pub look: LiveLook,
+    /// Align the clean plate to the frame on the pixels around the mask before it fills
+    /// (`pa_diminish::plate_align`: the homography from two tracked poses is off by their
+    /// errors); clean-plate fills, the marker's hiding by a plate, and the patch fill's
+    /// previous-frame prior.
+    pub align_plate: bool,
 }
 
 /// How a live sample becomes the twin's colour (`pa_raster::look`; both render paths).
@@ -135,6 +140,7 @@ impl ArSettings {
             dilate_px: 4,
             anti_alias: true,
             look: LiveLook::RELIT_FEATHERED,
+            align_plate: true,
         }
     }
 
@@ -146,6 +152,7 @@ impl ArSettings {
             dilate_px: 0,
             anti_alias: false,
             look: LiveLook::PLAIN,
+            align_plate: false,
         }
     }
 }

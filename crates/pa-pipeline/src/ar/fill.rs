@@ -5,7 +5,7 @@ use glam::{DMat3, DVec3, Mat4};
 use pa_camera::CameraModel;
 use pa_diminish::{
     dilate_in_bbox, CleanPlate, DilateShape, FillMethod, Homography, ImageRgba8, Mask, PatchFill,
-    PatchParams, PatchPrior, RayDirections, Rect,
+    PatchParams, PatchPrior, PlateAlign, RayDirections, Rect,
 };
 
 use super::texture::{Bbox, Textured};
@@ -92,9 +92,11 @@ impl ArPipeline {
             Fill::PaperRectangle => Some(FillMethod::PaperRectangle { rect: None }),
             Fill::Rays => Some(FillMethod::Rays(RayDirections::default())),
             Fill::CleanPlate => match (&self.plate, plate_h) {
-                (Some((plate, _)), Some(h)) => {
-                    Some(FillMethod::CleanPlate(CleanPlate::new(plate, h)))
-                }
+                (Some((plate, _)), Some(h)) => Some(FillMethod::CleanPlate(clean_plate(
+                    plate,
+                    h,
+                    self.settings.align_plate,
+                ))),
                 _ => Some(FillMethod::Rays(RayDirections::default())),
             },
             Fill::Patch { .. } | Fill::None => None,
@@ -113,6 +115,15 @@ pub(super) struct PatchState {
     image: ImageRgba8,
     mask: Mask,
     camera_from_marker: Mat4,
+}
+
+/// The clean plate's fill settings: `current_from_plate` `h`, aligned to the frame with
+/// `align` ([`super::ArSettings::align_plate`]).
+pub(super) fn clean_plate(plate: &ImageRgba8, h: Homography, align: bool) -> CleanPlate<'_> {
+    CleanPlate {
+        align: align.then(PlateAlign::default),
+        ..CleanPlate::new(plate, h)
+    }
 }
 
 impl ArPipeline {
@@ -147,7 +158,7 @@ impl ArPipeline {
                 )),
             });
         let plate = match (&self.plate, plate_h) {
-            (Some((plate, _)), Some(h)) => Some(CleanPlate::new(plate, h)),
+            (Some((plate, _)), Some(h)) => Some(clean_plate(plate, h, self.settings.align_plate)),
             _ => None,
         };
         // The surfaces over the patch fill's work region (its margin, and a pixel more).
@@ -179,6 +190,7 @@ impl ArPipeline {
             prior,
             plate,
             surfaces: labels,
+            align_prior: self.settings.align_plate.then(PlateAlign::default),
         });
         let filled = self.diminisher.fill_in_bbox(
             &mut background,

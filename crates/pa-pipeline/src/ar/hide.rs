@@ -28,12 +28,12 @@
 use glam::{DVec2, DVec3, Mat4};
 use pa_camera::CameraModel;
 use pa_diminish::{
-    fit_shading, paste_cover, CleanPlate, CoverImage, FillMethod, Homography, ImageRgba8, Paper,
-    Rect, SheetCoords, SheetShading,
+    fit_shading, paste_cover, CoverImage, FillMethod, Homography, ImageRgba8, Paper, Rect,
+    SheetCoords, SheetShading,
 };
 use pa_track::Board;
 
-use super::fill::plane_homography;
+use super::fill::{clean_plate, plane_homography};
 use super::{ArError, ArPipeline, FrameView};
 
 /// The default margin of paper around the tags' printed squares, metres.
@@ -244,6 +244,7 @@ impl ArPipeline {
         view: &FrameView<'_>,
         background: &mut ImageRgba8,
     ) -> Result<(), ArError> {
+        let align_plate = self.settings.align_plate;
         let Some(state) = self.hide.as_mut().filter(|h| h.enabled) else {
             return Ok(());
         };
@@ -274,8 +275,11 @@ impl ArPipeline {
                     view.camera_from_marker,
                     *camera_from_marker,
                 );
-                let method =
-                    FillMethod::CleanPlate(CleanPlate::new(plate, Homography::from_dmat3(hmat)));
+                let method = FillMethod::CleanPlate(clean_plate(
+                    plate,
+                    Homography::from_dmat3(hmat),
+                    align_plate,
+                ));
                 self.diminisher
                     .fill_in_bbox(background, &mask, bbox, &method)?;
             }

@@ -63,6 +63,7 @@ pub const KNOWN_KEYS: &[(&str, &[&str])] = &[
             "plate_frames",
             "dilation_px",
             "shadows",
+            "align_plate",
         ],
     ),
 ];

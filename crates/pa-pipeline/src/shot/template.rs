@@ -161,7 +161,8 @@ impl NewShot {
             "# and `preview` flags override it): fill = \"rays\" (default), \"patch\", \"plate\",",
         );
         line("# \"rectangle\" or \"none\"; clean_plate = \"plate.png\" (a still of the set without the");
-        line("# prop) or plate_frames = N (the take's first N stills); dilation_px = 4; shadows = false.");
+        line("# prop) or plate_frames = N (the take's first N stills); dilation_px = 4; shadows = false;");
+        line("# align_plate = true (the plate aligned to each frame around the prop).");
         line("# [diminish]");
         line("# fill = \"rays\"");
         line("");

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use pa_diminish::{dilate, DilateShape, Mask};
 use pa_pipeline::ar::{ArSettings, Fill};
+use pa_pipeline::composite::composite_twin_over;
 use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
@@ -52,8 +53,9 @@ pub struct Args {
     pub scene: String,
     /// Also write, per background, seed and frame, the inputs of a fill comparison as PNGs
     /// into this folder: `input`, `truth` (ground truth), `revealed` and `fillmask` (white =
-    /// set) and each fill's diminished plate (`fill_<name>`); see
-    /// `scripts/inpaint_baselines.py`.
+    /// set), each fill's diminished plate (`fill_<name>`) and output (`out_<name>`), and the
+    /// twin composited over black and over white (`twin_over_black`, `twin_over_white`: any
+    /// other fill goes under the same twin); see `scripts/inpaint_baselines.py`.
     #[arg(long)]
     pub dump_fills: Option<PathBuf>,
 }
@@ -70,6 +72,14 @@ fn dump_methods() -> Vec<(&'static str, ArSettings)> {
     ]
     .into_iter()
     .map(|(n, fill)| (n, ArSettings { fill, ..ours }))
+    .chain([(
+        "plate_unaligned",
+        ArSettings {
+            fill: Fill::CleanPlate,
+            align_plate: false,
+            ..ours
+        },
+    )])
     .collect()
 }
 
@@ -139,6 +149,29 @@ fn dump_fills(
                         }
                         if let Some(p) = &out.passes {
                             png(stem(&format!("fill_{name}")), p.plate_rgba8.clone())?;
+                            png(stem(&format!("out_{name}")), out.rgba8.clone())?;
+                            if i == 0 {
+                                // The twin as the pipeline composites it (anti-aliased edge,
+                                // linear light) over black and over white: another fill's
+                                // plate goes under the same twin as
+                                // `black + (white - black) * plate` in linear light.
+                                let mask: Vec<bool> =
+                                    p.twin_rgba8.chunks_exact(4).map(|px| px[3] != 0).collect();
+                                for (what, level) in
+                                    [("twin_over_black", 0u8), ("twin_over_white", 255)]
+                                {
+                                    let mut bg = [level, level, level, 255].repeat(mask.len());
+                                    composite_twin_over(
+                                        &mut bg,
+                                        &p.twin_rgba8,
+                                        &mask,
+                                        w,
+                                        h,
+                                        settings.anti_alias,
+                                    );
+                                    png(stem(what), bg)?;
+                                }
+                            }
                         }
                         anyhow::Ok(())
                     },

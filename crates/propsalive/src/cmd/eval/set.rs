@@ -83,7 +83,7 @@ pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
 }
 
 /// The fills compared on a set, with the generated scenes' method names.
-fn fills() -> [(&'static str, ArSettings); 5] {
+fn fills() -> [(&'static str, ArSettings); 6] {
     let ours = ArSettings::ours();
     [
         (
@@ -105,6 +105,14 @@ fn fills() -> [(&'static str, ArSettings); 5] {
             "ours with clean plate",
             ArSettings {
                 fill: Fill::CleanPlate,
+                ..ours
+            },
+        ),
+        (
+            "ours with clean plate, not aligned",
+            ArSettings {
+                fill: Fill::CleanPlate,
+                align_plate: false,
                 ..ours
             },
         ),
@@ -171,6 +179,8 @@ fn short(name: &str) -> &'static str {
         "patch"
     } else if name.contains("relit") {
         "relit"
+    } else if name.contains("not aligned") {
+        "plate_unaligned"
     } else if name.contains("plate") {
         "plate"
     } else if name.contains("memory") {

@@ -1,5 +1,6 @@
 //! The diminish flags of `run` and `preview` (`--fill`, `--clean-plate`, `--plate-frames`,
-//! `--dilation`, `--shadows`/`--no-shadows`), which override the shot's `[diminish]`
+//! `--dilation`, `--shadows`/`--no-shadows`, `--no-plate-align`), which override the shot's
+//! `[diminish]`
 //! (`pa_pipeline::shot_diminish`), and the clean plate: a still of the set without the prop,
 //! tracked like any still for the camera pose it was taken from (the pipeline warps it into
 //! each frame by the table-plane homography).
@@ -41,6 +42,10 @@ pub struct DiminishArgs {
     /// No shadow work (overrides the shot's `shadows = true`).
     #[arg(long)]
     pub no_shadows: bool,
+    /// Use the clean plate where the tracked poses place it, without aligning it to each
+    /// frame on the pixels around the prop (the shot's `align_plate = false`).
+    #[arg(long)]
+    pub no_plate_align: bool,
 }
 
 impl DiminishArgs {
@@ -56,6 +61,7 @@ impl DiminishArgs {
                 (_, true) => Some(false),
                 _ => None,
             },
+            align_plate: self.no_plate_align.then_some(false),
         }
     }
 
@@ -65,7 +71,7 @@ impl DiminishArgs {
     }
 }
 
-/// The pipeline's settings for `d`: our method with its fill and dilation.
+/// The pipeline's settings for `d`: our method with its fill, dilation and plate alignment.
 pub fn settings(d: &DiminishConfig) -> Result<ArSettings> {
     let Some(fill) = d.fill() else {
         bail!("fill {:?}: not available in this build", d.fill.name());
@@ -73,6 +79,7 @@ pub fn settings(d: &DiminishConfig) -> Result<ArSettings> {
     Ok(ArSettings {
         fill,
         dilate_px: d.dilation_px,
+        align_plate: d.align_plate,
         ..ArSettings::ours()
     })
 }
