@@ -255,3 +255,25 @@ fn frames_without_the_picture_give_no_pose_and_no_panic() {
     );
     assert!(target.detect(&frame, &cam).is_none());
 }
+
+/// Regression: a `GrayImage` built by hand whose buffer does not hold `width * height` bytes
+/// (its fields are public) panicked inside the full detection's pyramid; it is now no
+/// picture, as for `locate`'s tracking.
+#[test]
+fn regression_an_inconsistent_frame_is_no_picture_not_a_panic() {
+    let target = ImageTarget::new(&picture(), WIDTH_M).expect("target");
+    let cam = camera();
+    for len in [0usize, 10, 1280 * 720 - 1, 1280 * 720 + 7] {
+        let frame = GrayImage {
+            width: 1280,
+            height: 720,
+            data: vec![90; len],
+        };
+        assert!(target.detect(&frame, &cam).is_none(), "{len} bytes");
+        let pred = view_pose(0.6, 10.0, 0.0, 0.0, 0.0);
+        assert!(
+            target.locate(&frame, &cam, Some(&pred)).is_none(),
+            "{len} bytes"
+        );
+    }
+}

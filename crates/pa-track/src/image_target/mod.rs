@@ -374,8 +374,12 @@ impl ImageTarget {
         fit_pose(camera, &pairs, MIN_PAIRS)
     }
 
-    /// Full detection: features, matching, RANSAC homography, pose, patch refinement.
+    /// Full detection: features, matching, RANSAC homography, pose, patch refinement. A frame
+    /// whose buffer does not hold `width * height` bytes shows no picture.
     pub fn detect(&self, frame: &GrayImage, camera: &CameraModel) -> Option<ImageObservation> {
+        if frame.data.len() != frame.width as usize * frame.height as usize {
+            return None;
+        }
         let (pyr, smooth) = features::pyramid_smoothed(frame, FRAME_LEVELS);
         let cfg = FeatureConfig {
             fast_threshold: 18,
