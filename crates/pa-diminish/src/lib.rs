@@ -242,29 +242,26 @@ impl Diminisher {
                     None => (0, None, None),
                 };
                 // The previous frame's result, aligned to this frame like a plate.
-                let prior_alignment = match (&pf.prior, &pf.align_prior) {
-                    (Some(prior), Some(params)) => {
-                        prior.current_from_previous.inverse()?;
-                        plate_align::align_plate(
+                let (prior, prior_alignment) = match (pf.prior, &pf.align_prior) {
+                    (Some(p), Some(params)) => {
+                        let (current_from_previous, a) = plate_align::aligned_homography(
                             frame,
                             mask,
                             bbox,
-                            prior.image,
-                            prior.current_from_previous,
-                            params,
+                            p.image,
+                            p.current_from_previous,
+                            Some(params),
                             &mut self.align,
-                        )
+                        )?;
+                        let prior = PatchPrior {
+                            current_from_previous,
+                            ..p
+                        };
+                        (Some(prior), a)
                     }
-                    _ => None,
+                    (prior, _) => (prior, None),
                 };
-                let aligned = PatchFill {
-                    prior: pf.prior.map(|p| PatchPrior {
-                        current_from_previous: prior_alignment
-                            .map_or(p.current_from_previous, |a| a.current_from_plate),
-                        ..p
-                    }),
-                    ..*pf
-                };
+                let aligned = PatchFill { prior, ..*pf };
                 let patched = patch::patch_fill_region(
                     frame,
                     bbox,

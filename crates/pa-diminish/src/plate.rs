@@ -18,7 +18,7 @@
 
 use crate::error::DiminishError;
 use crate::mask::{dilate_local, extract_into, DilateShape};
-use crate::plate_align::{align_plate, AlignScratch, PlateAlign, PlateAlignment};
+use crate::plate_align::{aligned_homography, AlignScratch, PlateAlign, PlateAlignment};
 use crate::ray_fill::RayDirections;
 use crate::types::{ImageRgba8, Mask, Rect};
 use std::sync::OnceLock;
@@ -223,13 +223,13 @@ pub(crate) fn encode_linear(v: f32) -> u8 {
     (lut[i] + (lut[i + 1] - lut[i]) * f + 0.5).clamp(0.0, 255.0) as u8
 }
 
-struct Space {
+pub(crate) struct Space {
     dec: [f32; 256],
     enc: Option<&'static [f32]>,
 }
 
 impl Space {
-    fn new(space: GainSpace) -> Self {
+    pub(crate) fn new(space: GainSpace) -> Self {
         match space {
             GainSpace::Linear => Space {
                 dec: *decode_lut(),
@@ -263,7 +263,7 @@ impl Space {
 
 /// Bilinear plate sample in the working space, `None` outside `[0, w-1] x [0, h-1]`.
 #[inline]
-fn sample(plate: &ImageRgba8, space: &Space, q: [f64; 2]) -> Option<[f32; 3]> {
+pub(crate) fn sample(plate: &ImageRgba8, space: &Space, q: [f64; 2]) -> Option<[f32; 3]> {
     let (w, h) = plate.size();
     let (qx, qy) = (q[0], q[1]);
     if !(qx >= 0.0 && qy >= 0.0 && qx <= f64::from(w - 1) && qy <= f64::from(h - 1)) {
@@ -428,31 +428,17 @@ pub(crate) fn plate_fill_region(
     cp: &CleanPlate<'_>,
     scratch: &mut PlateScratch,
 ) -> Result<(usize, GainEstimate, Option<PlateAlignment>), DiminishError> {
-    // Validates the homography before the alignment uses it.
-    cp.current_from_plate.inverse()?;
-    let alignment = cp.align.as_ref().and_then(|params| {
-        align_plate(
-            frame,
-            mask,
-            region,
-            cp.plate,
-            cp.current_from_plate,
-            params,
-            &mut scratch.align,
-        )
-    });
-    if let Some(a) = &alignment {
-        log::debug!(
-            "clean plate: alignment {} (moves {:.2} px; robust cost {:.2} -> {:.2} on {} px)",
-            if a.applied { "applied" } else { "rejected" },
-            a.shift_px,
-            a.cost_before,
-            a.cost_after,
-            a.samples
-        );
-    }
+    let (current_from_plate, alignment) = aligned_homography(
+        frame,
+        mask,
+        region,
+        cp.plate,
+        cp.current_from_plate,
+        cp.align.as_ref(),
+        &mut scratch.align,
+    )?;
     let aligned = CleanPlate {
-        current_from_plate: alignment.map_or(cp.current_from_plate, |a| a.current_from_plate),
+        current_from_plate,
         ..*cp
     };
     let cp = &aligned;

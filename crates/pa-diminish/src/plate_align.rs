@@ -27,7 +27,8 @@
 //! them and a few 8x8 solves: 1.1-1.3 ms for a bust-sized mask at 1280x720, on top of the
 //! plate fill's 4.5-4.8 ms (one core; measured alternately in the same minutes).
 
-use crate::plate::Homography;
+use crate::error::DiminishError;
+use crate::plate::{sample, GainSpace, Homography, Space};
 use crate::types::{ImageRgba8, Mask, Rect};
 
 /// Settings of the plate's alignment ([`crate::CleanPlate::align`]).
@@ -147,23 +148,17 @@ impl LumaImage<'_> {
     }
 }
 
-/// The plate's luma at frame pixel `(x, y)` through `plate_from_current` (bilinear on the
-/// encoded values), `None` outside the plate.
-fn plate_luma(plate: &ImageRgba8, plate_from_current: &Homography, x: f64, y: f64) -> Option<f32> {
-    let [qx, qy] = plate_from_current.apply([x, y])?;
-    let (w, h) = plate.size();
-    if !(qx >= 0.0 && qy >= 0.0 && qx <= f64::from(w - 1) && qy <= f64::from(h - 1)) {
-        return None;
-    }
-    let (x0, y0) = (qx.floor() as usize, qy.floor() as usize);
-    let (x1, y1) = ((x0 + 1).min(w as usize - 1), (y0 + 1).min(h as usize - 1));
-    let (fx, fy) = ((qx - x0 as f64) as f32, (qy - y0 as f64) as f32);
-    let d = plate.as_slice();
-    let wu = w as usize;
-    let l = |a: usize, b: usize| luma(&d[(b * wu + a) * 4..(b * wu + a) * 4 + 3]);
-    let top = l(x0, y0) * (1.0 - fx) + l(x1, y0) * fx;
-    let bot = l(x0, y1) * (1.0 - fx) + l(x1, y1) * fx;
-    Some(top * (1.0 - fy) + bot * fy)
+/// The plate's luma at frame pixel `(x, y)` through `plate_from_current` (the plate fill's
+/// bilinear sample, in the encoded values), `None` outside the plate.
+fn plate_luma(
+    plate: &ImageRgba8,
+    encoded: &Space,
+    plate_from_current: &Homography,
+    x: f64,
+    y: f64,
+) -> Option<f32> {
+    let c = sample(plate, encoded, plate_from_current.apply([x, y])?)?;
+    Some(255.0 * (0.299 * c[0] + 0.587 * c[1] + 0.114 * c[2]))
 }
 
 /// Huber loss and IRLS weight of a residual `r` at scale `sigma` (threshold 1.345 sigma).
@@ -318,10 +313,49 @@ fn mirror(a: &mut [[f64; 8]; 8]) {
     }
 }
 
+/// `current_from_plate`, aligned with `params` when given ([`align_plate`]), and what the
+/// alignment found. A singular homography is an error before any work (the fills' own check).
+pub(crate) fn aligned_homography(
+    frame: &ImageRgba8,
+    mask: &Mask,
+    bbox: Rect,
+    plate: &ImageRgba8,
+    current_from_plate: Homography,
+    params: Option<&PlateAlign>,
+    scratch: &mut AlignScratch,
+) -> Result<(Homography, Option<PlateAlignment>), DiminishError> {
+    current_from_plate.inverse()?;
+    let alignment = params.and_then(|params| {
+        align_plate(
+            frame,
+            mask,
+            bbox,
+            plate,
+            current_from_plate,
+            params,
+            scratch,
+        )
+    });
+    if let Some(a) = &alignment {
+        log::debug!(
+            "plate alignment {} (moves {:.2} px; robust cost {:.2} -> {:.2} on {} px)",
+            if a.applied { "applied" } else { "rejected" },
+            a.shift_px,
+            a.cost_before,
+            a.cost_after,
+            a.samples
+        );
+    }
+    Ok((
+        alignment.map_or(current_from_plate, |a| a.current_from_plate),
+        alignment,
+    ))
+}
+
 /// Measures and, when it passes the gate, corrects the misalignment of the plate against
 /// `frame` around the set pixels of `mask` inside `bbox` (see the module docs). `None` when
 /// there is nothing to compare (no band pixels, a flat band, the plate out of view).
-pub(crate) fn align_plate(
+fn align_plate(
     frame: &ImageRgba8,
     mask: &Mask,
     bbox: Rect,
@@ -333,7 +367,7 @@ pub(crate) fn align_plate(
     let (fw, fh) = frame.size();
     let search = params.search_px.min(16);
     let band = bbox.expand_clipped(params.band_px + params.gap_px, fw, fh);
-    // The frame's luma and gradient over the band's box, grown by the search and a pixel.
+    // The frame's luma over the band's box, grown by the search and the gradient's reach.
     let reach = band.expand_clipped(search + 3, fw, fh);
     LumaImage::build(frame, reach, &mut scratch.luma);
     let luma_img = LumaImage {
@@ -357,6 +391,7 @@ pub(crate) fn align_plate(
         })
     };
     let plate_from_current = current_from_plate.inverse().ok()?;
+    let encoded = Space::new(GainSpace::Encoded);
     let (cx, cy) = (
         f64::from(band.x) + f64::from(band.width) / 2.0,
         f64::from(band.y) + f64::from(band.height) / 2.0,
@@ -369,7 +404,7 @@ pub(crate) fn align_plate(
                 continue;
             }
             let (x, y) = (f64::from(x), f64::from(y));
-            let Some(p) = plate_luma(plate, &plate_from_current, x, y) else {
+            let Some(p) = plate_luma(plate, &encoded, &plate_from_current, x, y) else {
                 continue;
             };
             scratch.samples.push([

@@ -314,7 +314,10 @@ pub fn resolve(
         plate,
         dilation_px,
         shadows: flags.shadows.or(d.shadows).unwrap_or(false),
-        align_plate: flags.align_plate.or(d.align_plate).unwrap_or(true),
+        align_plate: flags
+            .align_plate
+            .or(d.align_plate)
+            .unwrap_or(DiminishConfig::default().align_plate),
     })
 }
 

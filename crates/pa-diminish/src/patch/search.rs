@@ -130,7 +130,7 @@ fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
     // field) implies exactly that source, found without dividing.
     let f = field[p] as usize;
     let (fx, _) = xy(lv, f);
-    let own = lv.state[p] == HOLE && lv.state[f] == KNOWN;
+    let own = lv.state[f] == KNOWN;
     let mut sum = [0.0f32; 3];
     let mut count = 0.0f32;
     for dy in -r..=r {
@@ -151,15 +151,10 @@ fn vote_one(lv: &Level, field: &[u32], r: i32, p: usize) -> [f32; 3] {
             let s = if own && m == f as i32 + dy * w + dx && fx + dx >= 0 && fx + dx < w {
                 f
             } else {
-                let (sx, sy) = (m % w - dx, m / w - dy);
-                if sx < 0 || sy < 0 || sx >= w || sy >= h {
-                    continue;
+                match implied_source(lv, field, (px, py), (dx, dy)) {
+                    Some((s, _, _)) => s,
+                    None => continue,
                 }
-                let s = (sy * w + sx) as usize;
-                if lv.state[s] != KNOWN {
-                    continue;
-                }
-                s
             };
             add(&mut sum, lv.color[s]);
             count += 1.0;
