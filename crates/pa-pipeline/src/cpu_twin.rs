@@ -114,6 +114,7 @@ impl CpuTwin {
                 key_positions_world: &key.positions_world,
                 key_normals_world: &key.normals_world,
                 memory: &[],
+                sun_lit: &[],
             })
             .collect()
     }

@@ -24,6 +24,8 @@ use pa_model::{skin::PosedPrimitive, Model};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IrradianceSample {
     pub normal_world: Vec3,
+    /// Where the vertex is, world frame (for the sun's shadow test, [`crate::sun_fit`]).
+    pub position_world: Vec3,
     pub ratio_rgb: [f32; 3],
 }
 
@@ -277,6 +279,7 @@ pub fn irradiance_samples_from<'a>(
             }
             out.push(IrradianceSample {
                 normal_world,
+                position_world: world_from_model.transform_point3(*pos),
                 ratio_rgb,
             });
         }
@@ -333,6 +336,7 @@ mod tests {
             let n = Vec3::new(r * a.cos(), r * a.sin(), z);
             samples.push(IrradianceSample {
                 normal_world: n,
+                position_world: Vec3::ZERO,
                 ratio_rgb: lambert(n),
             });
         }
@@ -363,6 +367,7 @@ mod tests {
                 .iter()
                 .map(|s| IrradianceSample {
                     normal_world: Vec3::ZERO,
+                    position_world: Vec3::ZERO,
                     ratio_rgb: s.ratio_rgb,
                 })
                 .collect::<Vec<_>>(),
@@ -411,6 +416,7 @@ mod tests {
                 let n = seen(i, 400);
                 IrradianceSample {
                     normal_world: n,
+                    position_world: Vec3::ZERO,
                     ratio_rgb: lambert(n),
                 }
             })
@@ -444,6 +450,7 @@ mod tests {
     fn too_few_samples_is_none() {
         let s = IrradianceSample {
             normal_world: Vec3::Z,
+            position_world: Vec3::ZERO,
             ratio_rgb: [1.0; 3],
         };
         assert!(Irradiance::fit(&vec![s; MIN_SAMPLES - 1]).is_none());
@@ -457,6 +464,7 @@ mod tests {
     fn mean_of_few_samples() {
         let s = |r: f32| IrradianceSample {
             normal_world: Vec3::Z,
+            position_world: Vec3::ZERO,
             ratio_rgb: [r, 2.0 * r, 0.5],
         };
         assert_eq!(

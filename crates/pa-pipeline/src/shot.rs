@@ -360,6 +360,8 @@ pub struct ShotTexture {
     pub relight: bool,
     /// Blend live and fallback colour smoothly instead of hard seams.
     pub feather: bool,
+    /// Relight with the set's sun and the twin's own cast shadows.
+    pub sun: bool,
 }
 
 impl Default for ShotTexture {
@@ -368,6 +370,7 @@ impl Default for ShotTexture {
         Self {
             relight: look.relight,
             feather: look.feather,
+            sun: look.sun,
         }
     }
 }
@@ -378,11 +381,12 @@ impl ShotTexture {
         *self == Self::default()
     }
 
-    /// The pipeline's look.
+    /// The pipeline's look (the sun only relights: off without `relight`).
     pub fn look(&self) -> crate::ar::LiveLook {
         crate::ar::LiveLook {
             relight: self.relight,
             feather: self.feather,
+            sun: self.relight && self.sun,
         }
     }
 }
@@ -676,6 +680,10 @@ size_m = 0.05
         let (_d, p) = write(&format!("{SHOT}\n[texture]\nfeather = false\n"));
         let relit = Shot::load(&p).expect("valid");
         assert!(relit.texture.relight && !relit.texture.feather);
+        // The sun off: relit with the first-order light.
+        let (_d, p) = write(&format!("{SHOT}\n[texture]\nsun = false\n"));
+        let first_order = Shot::load(&p).expect("valid").texture.look();
+        assert!(first_order.relight && first_order.feather && !first_order.sun);
 
         let (_d, p) = write(&format!("{SHOT}\n[texture]\nrelit = true\n"));
         let err = Shot::load(&p).expect_err("unknown key").to_string();

@@ -17,6 +17,8 @@
 //! - [`renderer`]: [`CpuRenderer`], long-lived buffers and the per-frame passes.
 //! - [`mesh`]: closed, outward meshes, whose back faces can be culled without changing the
 //!   image.
+//! - [`sun`]: the set's sun with the twin's own cast shadows (a shadow map along the light),
+//!   for relighting and the fallback.
 //! - [`srgb`]: the sRGB transfer functions as tables.
 //!
 //! Architecture invariant: depends on `pa-camera` only (no wgpu, no glTF types); callers pose
@@ -30,6 +32,7 @@ pub mod mesh;
 pub mod raster;
 pub mod renderer;
 pub mod srgb;
+pub mod sun;
 pub mod texture;
 
 pub use error::RasterError;

@@ -111,6 +111,10 @@ pub struct LiveParams {
     /// Blend live and fallback colour with a continuous weight ([`crate::look`]) instead of
     /// a hard seam.
     pub feather: bool,
+    /// The set's sun with the twin's cast shadows ([`crate::sun`]): when set, it shades the
+    /// fallback and relights live samples instead of `fallback_irradiance`, with each
+    /// vertex's [`CpuLiveMesh::sun_lit`](crate::CpuLiveMesh::sun_lit).
+    pub sun: Option<crate::sun::SunLight>,
 }
 
 impl LiveParams {
@@ -127,6 +131,7 @@ impl LiveParams {
             fallback_irradiance: [[1.0, 0.0, 0.0, 0.0]; 3],
             relight: false,
             feather: false,
+            sun: None,
         }
     }
 }

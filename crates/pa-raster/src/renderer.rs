@@ -73,6 +73,10 @@ pub struct CpuLiveMesh<'a> {
     /// Texture memory, one [`crate::memory::VertexMemory::premultiplied`] entry per vertex
     /// (empty: none): a fallback pixel takes the remembered colour first.
     pub memory: &'a [[f32; 4]],
+    /// The fraction of the sun each vertex receives, `[key pose, animated pose]`
+    /// ([`crate::sun::ShadowMap::lit`]; empty: fully lit), read with
+    /// [`LiveParams::sun`](crate::LiveParams::sun).
+    pub sun_lit: &'a [[f32; 2]],
 }
 
 /// How the twin's pixels are coloured.
@@ -164,6 +168,8 @@ struct Vertex {
     uv: [f32; 2],
     /// Texture memory (premultiplied linear RGB, confidence); zero without.
     memory: [f32; 4],
+    /// Fraction of the sun received, `[key pose, animated pose]`.
+    sun_lit: [f32; 2],
 }
 
 /// Per-triangle data beside its set-up.
@@ -326,6 +332,7 @@ impl CpuRenderer {
                     key_normal_world: kn,
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     memory: m.memory.get(i).copied().unwrap_or([0.0; 4]),
+                    sun_lit: m.sun_lit.get(i).copied().unwrap_or([1.0; 2]),
                 }
             };
             self.vertices
@@ -510,8 +517,16 @@ impl ShadeContext<'_> {
                     }
                 };
                 // The remembered colour first, the lit model texture where the memory is unsure.
+                let sun_lit = || -> [f32; 2] {
+                    std::array::from_fn(|k| {
+                        va.sun_lit[k] * b0 + vb.sun_lit[k] * b1 + vc.sun_lit[k] * b2
+                    })
+                };
                 let fallback = |a: &[f32; 4]| -> [f32; 3] {
-                    let e = look::irradiance(&params.fallback_irradiance, normal());
+                    let e = match &params.sun {
+                        Some(sun) => sun.irradiance(normal(), sun_lit()[1]),
+                        None => look::irradiance(&params.fallback_irradiance, normal()),
+                    };
                     let lit = std::array::from_fn(|c| a[c] * e[c]);
                     let memory: [f32; 4] = std::array::from_fn(|c| {
                         va.memory[c] * b0 + vb.memory[c] * b1 + vc.memory[c] * b2
@@ -522,7 +537,13 @@ impl ShadeContext<'_> {
                     let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
                     if params.relight {
                         let nk = lerp3(|v| v.key_normal_world).normalize_or_zero();
-                        let f = look::relight_factor(&params.fallback_irradiance, nk, normal());
+                        let f = match &params.sun {
+                            Some(sun) => {
+                                let lit = sun_lit();
+                                sun.relight_factor(nk, lit[0], normal(), lit[1])
+                            }
+                            None => look::relight_factor(&params.fallback_irradiance, nk, normal()),
+                        };
                         rgb = std::array::from_fn(|c| rgb[c] * f[c]);
                     }
                     if weight < 1.0 {

@@ -211,6 +211,12 @@ pub struct LiveTexturing<'a> {
     pub relight: bool,
     /// Blend live and fallback colour with a continuous weight instead of a hard seam.
     pub feather: bool,
+    /// The set's sun (`pa_raster::sun`): when set, it shades the fallback and relights live
+    /// samples instead of `fallback_irradiance`, with `sun_lit` per vertex.
+    pub sun: Option<pa_raster::sun::SunLight>,
+    /// Per vertex of the draw's mesh, the fraction of the sun it receives, `[key pose,
+    /// animated pose]` (empty: fully lit).
+    pub sun_lit: &'a [[f32; 2]],
 }
 
 impl<'a> LiveTexturing<'a> {
@@ -240,6 +246,8 @@ impl<'a> LiveTexturing<'a> {
             memory: &[],
             relight: false,
             feather: false,
+            sun: None,
+            sun_lit: &[],
         }
     }
 
@@ -263,6 +271,13 @@ impl<'a> LiveTexturing<'a> {
     /// Sets a constant fallback gain (linear RGB; the same for every normal).
     pub fn with_fallback_gain(mut self, fallback_gain_rgb: [f32; 3]) -> Self {
         self.fallback_irradiance = fallback_gain_rgb.map(|g| [g, 0.0, 0.0, 0.0]);
+        self
+    }
+
+    /// Sets the sun and the fraction of it per vertex ([`LiveTexturing::sun`]).
+    pub fn with_sun(mut self, sun: pa_raster::sun::SunLight, sun_lit: &'a [[f32; 2]]) -> Self {
+        self.sun = Some(sun);
+        self.sun_lit = sun_lit;
         self
     }
 

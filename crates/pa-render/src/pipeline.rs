@@ -15,6 +15,8 @@
 //! | 3     | 0       | `LiveUniforms` (uniform)                  | live vertex + frag |
 //! | 3     | 1, 2    | camera frame + clamp/linear sampler       | live fragment      |
 //! | 3     | 3       | visibility map (R32Uint camera-z bits)    | live fragment      |
+//! | 3     | 4       | texture memory per vertex (storage)       | live vertex        |
+//! | 3     | 5       | fraction of the sun per vertex (storage)  | live vertex        |
 //!
 //! Live draws append their key-pose joint matrices and morph weights to the draw's own in
 //! group 1 (bases and counts in `LiveUniforms::key_counts`), so the vertex stage binds no more
@@ -70,6 +72,9 @@ pub(crate) struct LiveUniforms {
     pub stretch: [f32; 4],
     pub key_counts: [u32; 4],
     pub flags: [u32; 4],
+    pub sun_toward_light: [f32; 4],
+    pub sun_ambient: [f32; 4],
+    pub sun_direct: [f32; 4],
 }
 
 /// Everything created once per renderer.
@@ -208,6 +213,16 @@ impl Pipelines {
                         ty: wgpu::BufferBindingType::Storage { read_only: true },
                         has_dynamic_offset: false,
                         min_binding_size: wgpu::BufferSize::new(16),
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(8),
                     },
                     count: None,
                 },

@@ -23,7 +23,7 @@ const BINS: [(f64, f64); 6] = [
     (25.0, 50.0),
 ];
 
-fn looks() -> [(&'static str, LiveLook); 4] {
+fn looks() -> [(&'static str, LiveLook); 5] {
     [
         ("plain (hard seams, no relighting)", LiveLook::PLAIN),
         (
@@ -31,6 +31,7 @@ fn looks() -> [(&'static str, LiveLook); 4] {
             LiveLook {
                 relight: true,
                 feather: false,
+                sun: true,
             },
         ),
         (
@@ -38,6 +39,14 @@ fn looks() -> [(&'static str, LiveLook); 4] {
             LiveLook {
                 relight: false,
                 feather: true,
+                sun: false,
+            },
+        ),
+        (
+            "relit + feathered, first-order light (no sun)",
+            LiveLook {
+                sun: false,
+                ..LiveLook::RELIT_FEATHERED
             },
         ),
         ("relit + feathered", LiveLook::RELIT_FEATHERED),

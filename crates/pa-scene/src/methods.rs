@@ -138,6 +138,7 @@ pub fn methods() -> Vec<Method> {
                 look: LiveLook {
                     relight: true,
                     feather: false,
+                    sun: true,
                 },
                 ..ours
             },
@@ -150,6 +151,19 @@ pub fn methods() -> Vec<Method> {
                 look: LiveLook {
                     relight: false,
                     feather: true,
+                    sun: false,
+                },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours: first-order light (no sun, no cast shadows)",
+            settings: ArSettings {
+                look: LiveLook {
+                    sun: false,
+                    ..LiveLook::RELIT_FEATHERED
                 },
                 ..ours
             },
@@ -185,6 +199,7 @@ mod tests {
                 "ours: plain look (not relit, hard seams)",
                 "ours: relit, hard seams",
                 "ours: feathered seams, not relit",
+                "ours: first-order light (no sun, no cast shadows)",
             ]
         );
         let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
@@ -210,6 +225,7 @@ mod tests {
                 12 => assert_eq!(*l, LiveLook::PLAIN),
                 13 => assert!(l.relight && !l.feather),
                 14 => assert!(!l.relight && l.feather),
+                15 => assert!(l.relight && l.feather && !l.sun),
                 _ if paper => assert_eq!(*l, LiveLook::PLAIN, "{}", m[i].name),
                 _ => assert_eq!(*l, LiveLook::RELIT_FEATHERED, "{}", m[i].name),
             }

@@ -1,6 +1,6 @@
 //! Golden images of the frame pipeline on a small generated scene: the live texturing (with
-//! and without the visibility fallback, plain and relit with feathered seams (ours); no
-//! diminishing) and each fill (the paper's rectangle, our ray fill, the clean plate, the patch
+//! and without the visibility fallback, plain, relit with feathered seams and the sun (ours),
+//! and relit with the first-order light; no diminishing) and each fill (the paper's rectangle, our ray fill, the clean plate, the patch
 //! fill; the twin as ours), composited over the same frame.
 //!
 //! The scene is 192x108 (2x2 supersampled), seed 3, with the key prop of animation frame 0
@@ -74,6 +74,17 @@ fn texturing_and_fills_match_their_goldens() {
             "ar_texture_live_relit",
             ArSettings {
                 fill: Fill::None,
+                ..ours
+            },
+        ),
+        (
+            "ar_texture_live_first_order",
+            ArSettings {
+                fill: Fill::None,
+                look: LiveLook {
+                    sun: false,
+                    ..LiveLook::RELIT_FEATHERED
+                },
                 ..ours
             },
         ),

@@ -5,17 +5,18 @@
 use std::process::Command;
 
 /// The methods of the degradation curves (the legend of both degradation plots).
-const CURVE_METHODS: [&str; 6] = [
+const CURVE_METHODS: [&str; 7] = [
     "paper (live, no visibility, rectangle fill)",
     "ours: live + visibility, ray fill",
     "ours, two key poses (frames 0 and 24)",
     "ours: plain look (not relit, hard seams)",
     "ours: relit, hard seams",
     "ours: feathered seams, not relit",
+    "ours: first-order light (no sun, no cast shadows)",
 ];
 
 /// Every method (the categories of the method chart).
-const ALL_METHODS: [&str; 15] = [
+const ALL_METHODS: [&str; 16] = [
     "paper (live, no visibility, rectangle fill)",
     "live + visibility, rectangle fill",
     "live, no visibility, ray fill",
@@ -31,6 +32,7 @@ const ALL_METHODS: [&str; 15] = [
     "ours: plain look (not relit, hard seams)",
     "ours: relit, hard seams",
     "ours: feathered seams, not relit",
+    "ours: first-order light (no sun, no cast shadows)",
 ];
 
 fn read(path: &std::path::Path) -> String {

@@ -71,9 +71,10 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x (6 methods (rectangle, rays, plain look, plate aligned and not, patch) x
-    // shadows off and on, and rays with the texture memory).
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(52));
+    // 4 frames x (7 methods (rectangle, rays, plain look, first-order light, plate aligned
+    // and not, patch) x shadows off and on, and rays with the texture memory).
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(60));
+    assert!(out.join("blender_bust/first_order/0006.png").is_file());
     assert!(out.join("blender_bust/plate/0006.png").is_file());
     assert!(out.join("blender_bust/plate_unaligned/0006.png").is_file());
     assert!(out.join("blender_bust/memory/0006.png").is_file());

@@ -115,6 +115,11 @@ pub struct LiveLook {
     /// Blend live and fallback colour with a weight that goes smoothly to 0 towards each
     /// fallback condition, instead of hard seams.
     pub feather: bool,
+    /// With `relight`: model the set's light as a sun plus ambient with the twin's own cast
+    /// shadows ([`crate::sun_fit`], [`pa_raster::sun`]) where the key prop's shading fits one,
+    /// instead of the first-order light alone: a part that turns away from the sun, or into
+    /// the shadow of another part, darkens to the ambient.
+    pub sun: bool,
 }
 
 impl LiveLook {
@@ -122,11 +127,13 @@ impl LiveLook {
     pub const PLAIN: Self = Self {
         relight: false,
         feather: false,
+        sun: false,
     };
     /// Relighting and feathered seams (our default, [`ArSettings::ours`]).
     pub const RELIT_FEATHERED: Self = Self {
         relight: true,
         feather: true,
+        sun: true,
     };
 }
 

@@ -18,6 +18,7 @@ mod frame;
 mod hide;
 mod memory;
 mod shadows;
+mod sun;
 mod surfaces;
 #[cfg(test)]
 mod tests;
@@ -117,6 +118,9 @@ pub struct Prop {
     pub animation: usize,
     pub marker_from_prop: Mat4,
     twin: GpuTwin,
+    /// Per mesh and primitive (as drawn), the coarse mesh the sun's shadow map draws
+    /// ([`pa_raster::sun::coarse_mesh`] of the rest pose).
+    shadow_meshes: Vec<Vec<pa_raster::sun::CoarseMesh>>,
 }
 
 impl Prop {
@@ -131,11 +135,25 @@ impl Prop {
             return Err(ArError::NoAnimation { animation });
         }
         let twin = GpuTwin::upload(renderer, &model)?;
+        let shadow_meshes = model
+            .meshes
+            .iter()
+            .map(|m| {
+                m.primitives
+                    .iter()
+                    .map(|p| {
+                        let d = p.drawn();
+                        pa_raster::sun::coarse_mesh(&d.positions, &d.indices)
+                    })
+                    .collect()
+            })
+            .collect();
         Ok(Self {
             model,
             animation,
             marker_from_prop,
             twin,
+            shadow_meshes,
         })
     }
 

@@ -8,6 +8,7 @@ use glam::Mat4;
 use pa_model::anim;
 use pa_render::{CpuCamera, CpuTexture, Draw, LiveCamera, LiveDraw, LiveTexturing, Renderer};
 
+use super::sun::{sun_on_primitives, SunPrimitive};
 use super::{ms, ArError, ArPipeline, FrameView, StageTimings, Texturing};
 use crate::composite::bounding_box;
 use crate::cpu_twin::CpuTwin;
@@ -24,6 +25,9 @@ pub(super) struct CpuState {
     pub(super) renderer: pa_raster::CpuRenderer,
     /// The key pose's unlit colour (the colour gain of the paper's baseline).
     key_colour: pa_raster::CpuRenderer,
+    /// Per twin primitive (in [`CpuTwin::live_meshes`] order over the props): the fraction of
+    /// the sun each vertex receives, `[key, animated]` (see [`crate::sun_fit`]).
+    sun_lit: Vec<Vec<[f32; 2]>>,
 }
 
 impl CpuState {
@@ -35,6 +39,7 @@ impl CpuState {
                 .collect::<Result<_, _>>()?,
             renderer: pa_raster::CpuRenderer::new(),
             key_colour: pa_raster::CpuRenderer::new(),
+            sun_lit: Vec::new(),
         })
     }
 }
@@ -217,10 +222,45 @@ impl ArPipeline {
                         irradiance_samples(&p.model, &posed, p.marker_from_prop, &view, n)
                     })
                 } else {
-                    Irradiance::constant(gain.unwrap_or([1.0; 3]))
+                    (Irradiance::constant(gain.unwrap_or([1.0; 3])), Vec::new())
                 };
+                let (irradiance, samples) = irradiance;
                 let live_camera = LiveCamera::new(camera_model, camera_from_marker);
                 let look = self.settings.look;
+                // The sun (ours): both poses posed on the CPU, as for the samples; its
+                // fractions keyed by (prop, node, primitive).
+                let mut sun_lit = Vec::new();
+                let mut sun_keys: Vec<(usize, usize, usize)> = Vec::new();
+                let sun = if visibility && look.relight && look.sun {
+                    let posed: Vec<_> = props
+                        .iter()
+                        .map(|p| {
+                            let (anim_pose, key_pose) = p.poses(times);
+                            let world = |pose: &anim::Pose| {
+                                let mut v = pa_model::skin::pose_drawn_meshes(&p.model, pose);
+                                to_world(&mut v, p.marker_from_prop);
+                                v
+                            };
+                            (world(&key_pose), world(&anim_pose))
+                        })
+                        .collect();
+                    let mut prims = Vec::new();
+                    for (pi, (p, (key, anim))) in props.iter().zip(&posed).enumerate() {
+                        for (k, a) in key.iter().zip(anim) {
+                            sun_keys.push((pi, k.node, k.primitive));
+                            prims.push(SunPrimitive {
+                                key_positions: &k.positions,
+                                key_normals: &k.normals,
+                                anim_positions: &a.positions,
+                                anim_normals: &a.normals,
+                                shadow: &p.shadow_meshes[k.mesh][k.primitive],
+                            });
+                        }
+                    }
+                    sun_on_primitives(&irradiance, &samples, &prims, &mut sun_lit)
+                } else {
+                    None
+                };
                 let vis = if visibility {
                     self.visibility.as_ref()
                 } else {
@@ -257,6 +297,16 @@ impl ArPipeline {
                                     live.max_stretch = MAX_STRETCH;
                                     live.relight = look.relight;
                                     live.feather = look.feather;
+                                }
+                                if let Some(sun) = sun {
+                                    let lit = sun_keys
+                                        .iter()
+                                        .position(|&key| key == (pi, tp.node, tp.primitive))
+                                        .and_then(|i| sun_lit.get(i))
+                                        .filter(|l| l.len() == d.mesh.vertex_count());
+                                    if let Some(lit) = lit {
+                                        live = live.with_sun(sun, lit);
+                                    }
                                 }
                                 let mem = memory.and_then(|m| m.get(pi)?.attributes.get(k));
                                 if let Some(a) = mem {
@@ -382,7 +432,7 @@ impl ArPipeline {
                         width,
                         height,
                     };
-                    let light = key_light(twins.iter().zip(props), |(tw, p), n| {
+                    let (light, samples) = key_light(twins.iter().zip(props), |(tw, p), n| {
                         // Posed in the marker frame already: the world is the model's.
                         let posed = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
                             (
@@ -400,6 +450,26 @@ impl ArPipeline {
                     params.max_stretch = MAX_STRETCH;
                     params.relight = self.settings.look.relight;
                     params.feather = self.settings.look.feather;
+                    if params.relight && self.settings.look.sun {
+                        let prims: Vec<SunPrimitive<'_>> = twins
+                            .iter()
+                            .zip(props)
+                            .flat_map(|(tw, p)| {
+                                tw.primitives.iter().zip(tw.key.iter().zip(&tw.anim)).map(
+                                    |(tp, (k, a))| SunPrimitive {
+                                        key_positions: &k.positions_world,
+                                        key_normals: &k.normals_world,
+                                        anim_positions: &a.positions_world,
+                                        anim_normals: &a.normals_world,
+                                        shadow: &p.shadow_meshes[tp.mesh][tp.primitive],
+                                    },
+                                )
+                            })
+                            .collect();
+                        params.sun = sun_on_primitives(&light, &samples, &prims, &mut cpu.sun_lit);
+                    } else {
+                        cpu.sun_lit.clear();
+                    }
                 }
                 pa_raster::Shading::Live { frame, params }
             }
@@ -413,6 +483,9 @@ impl ArPipeline {
             for (m, a) in meshes.iter_mut().zip(self.memory.attributes()) {
                 m.memory = a;
             }
+        }
+        for (m, lit) in meshes.iter_mut().zip(&cpu.sun_lit) {
+            m.sun_lit = lit;
         }
         let image = cpu
             .renderer
@@ -442,10 +515,23 @@ impl ArPipeline {
 fn key_light<P>(
     props: impl ExactSizeIterator<Item = P>,
     mut samples_of: impl FnMut(P, usize) -> Vec<IrradianceSample>,
-) -> Irradiance {
+) -> (Irradiance, Vec<IrradianceSample>) {
     let per_prop = IRRADIANCE_SAMPLES / props.len();
     let samples: Vec<_> = props.flat_map(|p| samples_of(p, per_prop)).collect();
-    Irradiance::fit_or_mean(&samples)
+    (Irradiance::fit_or_mean(&samples), samples)
+}
+
+/// Posed primitives from the model's scene frame into the world (marker) frame.
+fn to_world(posed: &mut [pa_model::skin::PosedPrimitive], world_from_model: Mat4) {
+    let rotation = glam::Mat3::from_mat4(world_from_model);
+    for p in posed {
+        for v in &mut p.positions {
+            *v = world_from_model.transform_point3(*v);
+        }
+        for n in &mut p.normals {
+            *n = (rotation * *n).normalize_or_zero();
+        }
+    }
 }
 
 /// Per-channel gain that maps the model's texture (as rendered, unlit) to the live frame over

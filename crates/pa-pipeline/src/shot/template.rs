@@ -175,12 +175,16 @@ impl NewShot {
         line("# input = \"scan\"");
         line("");
         line(
-            "# How the live texture becomes the twin's colour (optional; both on by default): relight",
+            "# How the live texture becomes the twin's colour (optional; all on by default): relight",
         );
-        line("# shades it at the in-between's normals with the set's light; feather softens the");
-        line("# seams between live and fallback colour. false switches one off.");
+        line("# shades it at the in-between's normals with the set's light; sun models that light");
+        line("# as a sun with the twin's own cast shadows where the key prop's shading fits one;");
+        line(
+            "# feather softens the seams between live and fallback colour. false switches one off.",
+        );
         line("# [texture]");
         line("# relight = false");
+        line("# sun = false");
         line("# feather = false");
         text
     }

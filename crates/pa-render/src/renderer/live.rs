@@ -46,6 +46,26 @@ impl Renderer {
                 actual: l.memory.len(),
             });
         }
+        if !l.sun_lit.is_empty() && l.sun_lit.len() != d.mesh.vertex_count() {
+            return Err(RenderError::AttributeLength {
+                attribute: format!("draw #{i}: live sun fraction"),
+                expected: d.mesh.vertex_count(),
+                actual: l.sun_lit.len(),
+            });
+        }
+        let sun_finite = l.sun.is_none_or(|s| {
+            s.toward_light.is_finite()
+                && s.ambient_rgb
+                    .iter()
+                    .chain(&s.direct_rgb)
+                    .all(|x| x.is_finite())
+        });
+        if !sun_finite || !l.sun_lit.iter().flatten().all(|x| x.is_finite()) {
+            return Err(RenderError::NonFiniteDrawInput {
+                draw: i,
+                what: "live sun",
+            });
+        }
         if !l.memory.iter().flatten().all(|x| x.is_finite()) {
             return Err(RenderError::NonFiniteDrawInput {
                 draw: i,
@@ -196,6 +216,32 @@ impl Renderer {
             contents: bytemuck::cast_slice(memory),
             usage: wgpu::BufferUsages::STORAGE,
         });
+        // The sun and the fraction of it per vertex (one entry when the draw has none).
+        let sun_lit: &[[f32; 2]] = match live.and_then(|l| l.sun.map(|s| (l, s))) {
+            Some((l, sun)) => {
+                u.flags[3] = 1;
+                let t = sun.toward_light;
+                u.sun_toward_light = [t.x, t.y, t.z, 0.0];
+                u.sun_ambient = [
+                    sun.ambient_rgb[0],
+                    sun.ambient_rgb[1],
+                    sun.ambient_rgb[2],
+                    0.0,
+                ];
+                u.sun_direct = [sun.direct_rgb[0], sun.direct_rgb[1], sun.direct_rgb[2], 0.0];
+                if l.sun_lit.is_empty() {
+                    &[[1.0; 2]]
+                } else {
+                    l.sun_lit
+                }
+            }
+            None => &[[1.0; 2]],
+        };
+        let sun_lit_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pa-render live sun"),
+            contents: bytemuck::cast_slice(sun_lit),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         let uniform_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("pa-render live uniforms"),
             contents: bytemuck::bytes_of(&u),
@@ -224,6 +270,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 4,
                     resource: memory_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: sun_lit_buffer.as_entire_binding(),
                 },
             ],
         }))

@@ -7,7 +7,7 @@
 @group(2) @binding(0) var base_color_texture: texture_2d<f32>;
 @group(2) @binding(1) var base_color_sampler: sampler;
 
-// Per-draw live-texturing uniforms (384 bytes).
+// Per-draw live-texturing uniforms (432 bytes).
 struct LiveUniforms {
     key_world_from_mesh: mat4x4<f32>,
     // The camera that took the frame (OpenCV axes).
@@ -34,8 +34,14 @@ struct LiveUniforms {
     stretch: vec4<f32>,
     // x: key joint base, y: key joint count, z: key morph base, w: key morph count.
     key_counts: vec4<u32>,
-    // x: 1 = live-textured draw, y: 1 = a visibility map is bound, z: 1 = texture memory.
+    // x: 1 = live-textured draw, y: 1 = a visibility map is bound, z: 1 = texture memory,
+    // w: 1 = the sun (pa_raster::sun) relights and shades the fallback instead of
+    // fallback_irradiance.
     flags: vec4<u32>,
+    // The sun: xyz unit direction towards it (world), and ambient and direct linear RGB.
+    sun_toward_light: vec4<f32>,
+    sun_ambient: vec4<f32>,
+    sun_direct: vec4<f32>,
 }
 
 @group(3) @binding(0) var<uniform> live: LiveUniforms;
@@ -46,6 +52,9 @@ struct LiveUniforms {
 // Texture memory per vertex: remembered linear RGB times confidence, and the confidence
 // (pa_raster::memory; one zero entry when live.flags.z == 0).
 @group(3) @binding(4) var<storage, read> live_memory: array<vec4<f32>>;
+// Fraction of the sun each vertex receives, (key pose, animated pose) (pa_raster::sun; one
+// entry when live.flags.w == 0).
+@group(3) @binding(5) var<storage, read> live_sun_lit: array<vec2<f32>>;
 
 // Codes of the validity target (`LiveSample` on the Rust side).
 const LIVE_NONE: u32 = 0u;
@@ -72,6 +81,8 @@ struct LiveVsOut {
     @location(7) memory: vec4<f32>,
     // The key-pose normal in the world (relighting).
     @location(8) key_normal_world: vec3<f32>,
+    // Fraction of the sun received (key pose, animated pose), interpolated.
+    @location(9) sun_lit: vec2<f32>,
 }
 
 @vertex
@@ -91,6 +102,10 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
     out.memory = vec4<f32>(0.0);
     if (live.flags.z == 1u && vid < arrayLength(&live_memory)) {
         out.memory = live_memory[vid];
+    }
+    out.sun_lit = vec2<f32>(1.0);
+    if (live.flags.w == 1u && vid < arrayLength(&live_sun_lit)) {
+        out.sun_lit = live_sun_lit[vid];
     }
     out.key_normal_world = vec3<f32>(0.0);
     if (live.flags.x == 1u) {
@@ -169,6 +184,9 @@ const FULL_WEIGHT_MIN: f32 = 0.998046875; // 1 - 1/512
 const RELIGHT_MIN: f32 = 0.7;
 const RELIGHT_MAX: f32 = 2.0;
 const MIN_IRRADIANCE: f32 = 0.02;
+// The sun's relighting ratio clamp (pa_raster::sun).
+const SUN_RELIGHT_MIN: f32 = 0.25;
+const SUN_RELIGHT_MAX: f32 = 2.5;
 
 // Smooth ramp from 0 at x <= 0 to 1 at x >= width (a step at 0 when width <= 0).
 fn ramp(x: f32, width: f32) -> f32 {
@@ -193,6 +211,14 @@ fn irradiance(n: vec3<f32>) -> vec3<f32> {
         dot(live.fallback_irradiance[1], sh),
         dot(live.fallback_irradiance[2], sh),
     );
+    return max(e, vec3<f32>(MIN_IRRADIANCE));
+}
+
+// The sun's irradiance at a world-space normal (zero: half the direct light) receiving the
+// fraction `lit` of it, floored (pa_raster::sun::SunLight::irradiance).
+fn sun_irradiance(n: vec3<f32>, lit: f32) -> vec3<f32> {
+    let cos = select(max(dot(n, live.sun_toward_light.xyz), 0.0), 0.5, dot(n, n) == 0.0);
+    let e = live.sun_ambient.rgb + live.sun_direct.rgb * (clamp(lit, 0.0, 1.0) * cos);
     return max(e, vec3<f32>(MIN_IRRADIANCE));
 }
 
@@ -322,15 +348,26 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
             n = -n;
         }
         // The remembered colour first, the lit model texture where the memory is unsure.
-        let lit = albedo.rgb * irradiance(n);
+        let sun = live.flags.w == 1u;
+        var e_anim = irradiance(n);
+        if (sun) {
+            e_anim = sun_irradiance(n, in.sun_lit.y);
+        }
+        let lit = albedo.rgb * e_anim;
         let fallback = in.memory.rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
         if (code == LIVE_VALID) {
             let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
             var c = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
             if (live.stretch.y == 1.0) {
                 // Relit at the animated normal: c E(n_anim) / E(n_key), clamped.
-                let ratio = irradiance(n) / irradiance(unit_or_zero(in.key_normal_world));
-                c *= clamp(ratio, vec3<f32>(RELIGHT_MIN), vec3<f32>(RELIGHT_MAX));
+                let nk = unit_or_zero(in.key_normal_world);
+                if (sun) {
+                    let ratio = e_anim / sun_irradiance(nk, in.sun_lit.x);
+                    c *= clamp(ratio, vec3<f32>(SUN_RELIGHT_MIN), vec3<f32>(SUN_RELIGHT_MAX));
+                } else {
+                    let ratio = e_anim / irradiance(nk);
+                    c *= clamp(ratio, vec3<f32>(RELIGHT_MIN), vec3<f32>(RELIGHT_MAX));
+                }
             }
             rgb = select(mix(fallback, c, lookup.weight), c, lookup.weight >= 1.0);
         } else {

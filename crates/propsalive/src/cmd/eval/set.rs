@@ -83,7 +83,7 @@ pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
 }
 
 /// The fills compared on a set, with the generated scenes' method names.
-fn fills() -> [(&'static str, ArSettings); 6] {
+fn fills() -> [(&'static str, ArSettings); 7] {
     let ours = ArSettings::ours();
     [
         (
@@ -98,6 +98,16 @@ fn fills() -> [(&'static str, ArSettings); 6] {
             "ours: plain look (not relit, hard seams)",
             ArSettings {
                 look: pa_pipeline::ar::LiveLook::PLAIN,
+                ..ours
+            },
+        ),
+        (
+            "ours: first-order light (no sun, no cast shadows)",
+            ArSettings {
+                look: pa_pipeline::ar::LiveLook {
+                    sun: false,
+                    ..pa_pipeline::ar::LiveLook::RELIT_FEATHERED
+                },
                 ..ours
             },
         ),
@@ -175,6 +185,8 @@ fn fills_chart(rows: &[MethodRow]) -> BarChart {
 fn short(name: &str) -> &'static str {
     if name.contains("rectangle") {
         "rectangle"
+    } else if name.contains("first-order") {
+        "first_order"
     } else if name.contains("patch") {
         "patch"
     } else if name.contains("relit") {
