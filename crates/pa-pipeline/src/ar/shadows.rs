@@ -36,6 +36,17 @@ pub(super) struct ShadowState {
     retry_in: u32,
 }
 
+impl ShadowState {
+    /// The light's direction when shadows are on and it is known (finite, non-zero).
+    fn sun_direction(&self) -> Option<Vec3> {
+        self.enabled
+            .then_some(self.light)
+            .flatten()
+            .map(|l| l.toward_light)
+            .filter(|l| l.is_finite() && l.length() > 0.5)
+    }
+}
+
 /// The props posed at a frame's two times, as triangles in the marker frame.
 pub(super) struct ShadowTriangles {
     key: Vec<[Vec3; 3]>,
@@ -57,6 +68,13 @@ impl ArPipeline {
     /// The light the shadows use, once estimated (or given).
     pub fn shadow_light(&self) -> Option<ShadowLight> {
         self.shadows.light
+    }
+
+    /// The direction toward the light for the sun's relighting ([`super::sun`]): the shadows'
+    /// light when shadows are on and it is known (estimated from the key prop's cast shadow on
+    /// an earlier frame, or given), which is better measured than the key prop's shading.
+    pub(super) fn sun_direction_from_shadows(&self) -> Option<Vec3> {
+        self.shadows.sun_direction()
     }
 
     /// Gives the light (never re-estimated), or `None` to estimate it from the next frames.
@@ -182,5 +200,30 @@ impl ArPipeline {
             cast_shadow(background, &matte, light.ratio_rgb)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sun_takes_the_shadows_light_only_when_shadows_are_on_and_it_is_known() {
+        let light = ShadowLight {
+            toward_light: Vec3::new(-0.4, 0.48, -0.78),
+            softness_px: 0.75,
+            ratio_rgb: [0.3; 3],
+        };
+        let mut state = ShadowState::default();
+        assert_eq!(state.sun_direction(), None);
+        state.light = Some(light);
+        assert_eq!(state.sun_direction(), None, "shadows off");
+        state.enabled = true;
+        assert_eq!(state.sun_direction(), Some(light.toward_light));
+        state.light = Some(ShadowLight {
+            toward_light: Vec3::NAN,
+            ..light
+        });
+        assert_eq!(state.sun_direction(), None, "a NaN light");
     }
 }

@@ -24,17 +24,22 @@ pub(super) struct SunPrimitive<'a> {
     pub shadow: &'a CoarseMesh,
 }
 
-/// The sun fitted on `samples` starting from the direction of `light`, and into `sun_lit`
-/// (one entry per primitive, one `[key, animated]` per vertex) the fraction of it each vertex
-/// receives. `None` (and `sun_lit` emptied) when the light has no sun.
+/// The sun fitted on `samples` starting from the direction of `light` (or along `known`, a
+/// direction measured otherwise: the shadows' light), and into `sun_lit` (one entry per
+/// primitive, one `[key, animated]` per vertex) the fraction of it each vertex receives.
+/// `None` (and `sun_lit` emptied) when the light has no sun.
 pub(super) fn sun_on_primitives(
     light: &Irradiance,
     samples: &[IrradianceSample],
+    known: Option<Vec3>,
     prims: &[SunPrimitive<'_>],
     sun_lit: &mut Vec<Vec<[f32; 2]>>,
 ) -> Option<SunLight> {
     sun_lit.clear();
-    let start = crate::sun_fit::sun_direction(light)?;
+    let start = match known {
+        Some(l) => l.normalize(),
+        None => crate::sun_fit::sun_direction(light)?,
+    };
     // The coarse meshes' vertices in both poses.
     let gathered = |anim: bool| -> Vec<Vec<Vec3>> {
         prims
@@ -62,7 +67,10 @@ pub(super) fn sun_on_primitives(
         .zip(prims)
         .map(|(v, p)| (v.as_slice(), p.shadow.triangles.as_slice()))
         .collect();
-    let toward = crate::sun_fit::direction_on_key_pose(samples, start, &key);
+    let toward = match known {
+        Some(_) => start,
+        None => crate::sun_fit::direction_on_key_pose(samples, start, &key),
+    };
     let (key_map, anim_map) = rayon::join(
         || ShadowMap::with_cells(toward, &key, SUN_MAP_CELLS),
         || ShadowMap::with_cells(toward, &anim, SUN_MAP_CELLS),

@@ -257,7 +257,8 @@ impl ArPipeline {
                             });
                         }
                     }
-                    sun_on_primitives(&irradiance, &samples, &prims, &mut sun_lit)
+                    let known = self.sun_direction_from_shadows();
+                    sun_on_primitives(&irradiance, &samples, known, &prims, &mut sun_lit)
                 } else {
                     None
                 };
@@ -357,6 +358,7 @@ impl ArPipeline {
         let n = (width * height) as usize;
         let t = Instant::now();
         let memory_on = self.memory_active();
+        let known_sun = self.sun_direction_from_shadows();
         let props = &self.props;
         let cpu = match &mut self.cpu {
             Some(c) => c,
@@ -466,7 +468,13 @@ impl ArPipeline {
                                 )
                             })
                             .collect();
-                        params.sun = sun_on_primitives(&light, &samples, &prims, &mut cpu.sun_lit);
+                        params.sun = sun_on_primitives(
+                            &light,
+                            &samples,
+                            known_sun,
+                            &prims,
+                            &mut cpu.sun_lit,
+                        );
                     } else {
                         cpu.sun_lit.clear();
                     }
