@@ -18,6 +18,7 @@ pub mod shot_config;
 pub mod shot_diminish;
 pub mod shot_hide;
 pub mod shot_scan;
+pub mod shot_texture;
 pub mod sun_fit;
 pub mod twin;
 

@@ -58,6 +58,8 @@ pub const MAX_SHOT_BYTES: u64 = 4 << 20;
 mod keys;
 pub mod template;
 
+pub use crate::shot_texture::ShotTexture;
+
 pub use keys::{KNOWN_KEYS, SHOT_FORMAT};
 
 /// Errors reading, checking or writing a shot, or turning it into a board or a camera
@@ -349,46 +351,6 @@ pub struct Shot {
     /// How live samples become the twin's colour (`[texture]`).
     #[serde(default, skip_serializing_if = "ShotTexture::is_empty")]
     pub texture: ShotTexture,
-}
-
-/// The shot's `[texture]`: relighting and feathered seams (`crate::ar::LiveLook`), both on
-/// unless the shot switches them off (as [`crate::ar::ArSettings::ours`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ShotTexture {
-    /// Shade live samples at the in-between's normal with the set's light.
-    pub relight: bool,
-    /// Blend live and fallback colour smoothly instead of hard seams.
-    pub feather: bool,
-    /// Relight with the set's sun and the twin's own cast shadows.
-    pub sun: bool,
-}
-
-impl Default for ShotTexture {
-    fn default() -> Self {
-        let look = crate::ar::ArSettings::ours().look;
-        Self {
-            relight: look.relight,
-            feather: look.feather,
-            sun: look.sun,
-        }
-    }
-}
-
-impl ShotTexture {
-    /// The defaults (what the shot writer leaves out).
-    pub fn is_empty(&self) -> bool {
-        *self == Self::default()
-    }
-
-    /// The pipeline's look (the sun only relights: off without `relight`).
-    pub fn look(&self) -> crate::ar::LiveLook {
-        crate::ar::LiveLook {
-            relight: self.relight,
-            feather: self.feather,
-            sun: self.relight && self.sun,
-        }
-    }
 }
 
 fn format_one() -> u32 {

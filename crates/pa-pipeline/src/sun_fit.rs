@@ -2,12 +2,15 @@
 //! ([`pa_raster::sun`]): the light the relighting and the fallback use when it fits.
 //!
 //! 1. The direction: the dominant direction of the first-order irradiance already fitted
-//!    ([`crate::shading::Irradiance`]): for ambient plus one directional light, the linear
-//!    terms point at the light.
-//! 2. The key pose's shadow map along it says which sampled vertices the prop itself shadows.
+//!    ([`crate::shading::Irradiance`]; for ambient plus one directional light its linear terms
+//!    point at the light), refined by Gauss-Newton on the clamped cosine
+//!    ([`refine_direction`]), then again with the key pose's own shadows along it
+//!    ([`direction_on_key_pose`]).
+//! 2. The key pose's shadow map along that direction says which sampled vertices the prop
+//!    itself shadows.
 //! 3. Per linear RGB channel, `ratio = ambient + direct * lit * max(n . l, 0)` by least
 //!    squares over the samples, refitted without the 20 % largest residuals (speculars,
-//!    misregistration, the occluding hand).
+//!    misregistration, the occluding hand) ([`fit_sun`]).
 //!
 //! No sun (the first-order light stays in charge) when the samples do not separate lit from
 //! unlit (a flat light, a prop seen only on its lit side), or the fit is not a light (a
@@ -69,7 +72,7 @@ pub fn refine_direction(
     };
     // Ambient and direct at the start by least squares, and the residuals' robust scale.
     let x = x_at(start);
-    let Some((mut ambient, mut direct)) = line_fit(&x, &y, |_| true) else {
+    let Some((mut ambient, mut direct)) = line_fit(&x, &y, |_| true, 1e-9) else {
         return start;
     };
     let mut abs_r: Vec<f64> = x
@@ -138,8 +141,14 @@ pub fn refine_direction(
 }
 
 /// Slope-intercept least squares of `y` on `x` over the samples `keep(i)`: `(intercept,
-/// slope)`, `None` with fewer than [`MIN_SAMPLES`] or without spread in `x`.
-fn line_fit(x: &[f64], y: &[f64], keep: impl Fn(usize) -> bool) -> Option<(f64, f64)> {
+/// slope)`, `None` with fewer than [`MIN_SAMPLES`] or with the variance of `x` at most
+/// `min_variance`.
+fn line_fit(
+    x: &[f64],
+    y: &[f64],
+    keep: impl Fn(usize) -> bool,
+    min_variance: f64,
+) -> Option<(f64, f64)> {
     let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
     for (i, (&xi, &yi)) in x.iter().zip(y).enumerate() {
         if keep(i) {
@@ -151,7 +160,7 @@ fn line_fit(x: &[f64], y: &[f64], keep: impl Fn(usize) -> bool) -> Option<(f64, 
         }
     }
     let var = sxx / n - (sx / n).powi(2);
-    if !(n >= MIN_SAMPLES as f64 && var > 1e-9) {
+    if !(n >= MIN_SAMPLES as f64 && var > min_variance) {
         return None;
     }
     let slope = (sxy / n - sx / n * sy / n) / var;
@@ -199,29 +208,19 @@ pub fn fit_sun(samples: &[IrradianceSample], toward_light: Vec3, lit: &[f32]) ->
     })
 }
 
-/// Per channel `(ambient, direct)` by least squares over the samples `keep`.
+/// Per channel `(ambient, direct)` by least squares over the samples `keep`
+/// ([`line_fit`]; `None` unless the direct term varies by more than [`MIN_DIRECT_VARIANCE`]
+/// and every term is finite).
 fn solve(samples: &[IrradianceSample], x: &[f64], keep: &[usize]) -> Option<([f64; 3], [f64; 3])> {
-    let n = keep.len() as f64;
-    if keep.len() < MIN_SAMPLES {
-        return None;
-    }
-    let (sx, sxx) = keep
-        .iter()
-        .fold((0.0, 0.0), |(a, b), &i| (a + x[i], b + x[i] * x[i]));
-    let var = sxx / n - (sx / n).powi(2);
-    if var.is_nan() || var <= MIN_DIRECT_VARIANCE {
-        return None;
+    let mut kept = vec![false; x.len()];
+    for &i in keep {
+        kept[i] = true;
     }
     let mut ambient = [0.0; 3];
     let mut direct = [0.0; 3];
     for c in 0..3 {
-        let (sy, sxy) = keep.iter().fold((0.0, 0.0), |(a, b), &i| {
-            let y = f64::from(samples[i].ratio_rgb[c]);
-            (a + y, b + x[i] * y)
-        });
-        let slope = (sxy / n - sx / n * sy / n) / var;
-        direct[c] = slope;
-        ambient[c] = sy / n - slope * sx / n;
+        let y: Vec<f64> = samples.iter().map(|s| f64::from(s.ratio_rgb[c])).collect();
+        (ambient[c], direct[c]) = line_fit(x, &y, |i| kept[i], MIN_DIRECT_VARIANCE)?;
     }
     ambient
         .iter()
@@ -230,20 +229,16 @@ fn solve(samples: &[IrradianceSample], x: &[f64], keep: &[usize]) -> Option<([f6
         .then_some((ambient, direct))
 }
 
-/// Shadow-map cells along the longer side while the direction is searched.
-const SEARCH_CELLS: usize = 64;
-
 /// The direction towards the sun, from the first-order light's direction `start`:
 /// [`refine_direction`] without cast shadows, then again with the key pose's own shadows
-/// along that direction (`key`: `(positions, indices)` per primitive, world frame, a coarse
-/// map).
+/// along that direction (`key`: `(positions, indices)` per primitive, world frame).
 pub fn direction_on_key_pose(
     samples: &[IrradianceSample],
     start: Vec3,
     key: &[(&[Vec3], &[u32])],
 ) -> Vec3 {
     let first = refine_direction(samples, &[], start, 0.3);
-    let map = ShadowMap::with_cells(first, key, SEARCH_CELLS);
+    let map = ShadowMap::new(first, key);
     let lit: Vec<f32> = samples
         .iter()
         .map(|s| map.lit(s.position_world, s.normal_world))

@@ -8,11 +8,6 @@ use rayon::prelude::*;
 
 use crate::shading::{Irradiance, IrradianceSample};
 
-/// Shadow-map cells along the longer side of the twins as the sun sees them (measured on the
-/// Blender sets: 64, 96, 128 and 192 cells gave 23.56, 23.62, 23.63 and 23.64 dB on CesiumMan
-/// and 28.63, 28.61, 28.62 and 28.61 dB on the bust; the cost grows with the cells).
-const SUN_MAP_CELLS: usize = 64;
-
 /// One primitive of a twin in both poses, world (marker) frame: vertex `i` of the key pose is
 /// vertex `i` of the animated one.
 pub(super) struct SunPrimitive<'a> {
@@ -41,39 +36,19 @@ pub(super) fn sun_on_primitives(
         None => crate::sun_fit::sun_direction(light)?,
     };
     // The coarse meshes' vertices in both poses.
-    let gathered = |anim: bool| -> Vec<Vec<Vec3>> {
-        prims
-            .iter()
-            .map(|p| {
-                let mut v = Vec::new();
-                let positions = if anim {
-                    p.anim_positions
-                } else {
-                    p.key_positions
-                };
-                p.shadow.gather(positions, &mut v);
-                v
-            })
-            .collect()
-    };
-    let (key_vertices, anim_vertices) = (gathered(false), gathered(true));
-    let key: Vec<(&[Vec3], &[u32])> = key_vertices
-        .iter()
-        .zip(prims)
-        .map(|(v, p)| (v.as_slice(), p.shadow.triangles.as_slice()))
-        .collect();
-    let anim: Vec<(&[Vec3], &[u32])> = anim_vertices
-        .iter()
-        .zip(prims)
-        .map(|(v, p)| (v.as_slice(), p.shadow.triangles.as_slice()))
-        .collect();
+    let key_vertices = coarse_vertices(prims, |p| p.key_positions);
+    let anim_vertices = coarse_vertices(prims, |p| p.anim_positions);
+    let (key, anim) = (
+        coarse_meshes(&key_vertices, prims),
+        coarse_meshes(&anim_vertices, prims),
+    );
     let toward = match known {
         Some(_) => start,
         None => crate::sun_fit::direction_on_key_pose(samples, start, &key),
     };
     let (key_map, anim_map) = rayon::join(
-        || ShadowMap::with_cells(toward, &key, SUN_MAP_CELLS),
-        || ShadowMap::with_cells(toward, &anim, SUN_MAP_CELLS),
+        || ShadowMap::new(toward, &key),
+        || ShadowMap::new(toward, &anim),
     );
     let lit: Vec<f32> = samples
         .iter()
@@ -97,4 +72,31 @@ pub(super) fn sun_on_primitives(
         out
     }));
     Some(sun)
+}
+
+/// Each primitive's coarse-mesh vertices gathered from its positions in one pose.
+fn coarse_vertices<'a>(
+    prims: &[SunPrimitive<'a>],
+    positions: impl Fn(&SunPrimitive<'a>) -> &'a [Vec3],
+) -> Vec<Vec<Vec3>> {
+    prims
+        .iter()
+        .map(|p| {
+            let mut v = Vec::new();
+            p.shadow.gather(positions(p), &mut v);
+            v
+        })
+        .collect()
+}
+
+/// The coarse meshes of one pose as the shadow map takes them: `(vertices, triangles)`.
+fn coarse_meshes<'a>(
+    vertices: &'a [Vec<Vec3>],
+    prims: &'a [SunPrimitive<'_>],
+) -> Vec<(&'a [Vec3], &'a [u32])> {
+    vertices
+        .iter()
+        .zip(prims)
+        .map(|(v, p)| (v.as_slice(), p.shadow.triangles.as_slice()))
+        .collect()
 }

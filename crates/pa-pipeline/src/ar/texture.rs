@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use glam::Mat4;
 use pa_model::anim;
+use pa_model::skin::PosedPrimitive;
 use pa_render::{CpuCamera, CpuTexture, Draw, LiveCamera, LiveDraw, LiveTexturing, Renderer};
 
 use super::sun::{sun_on_primitives, SunPrimitive};
@@ -142,14 +143,14 @@ impl ArPipeline {
             far_m: FAR_M,
         };
         let props = &self.props;
-        // Per prop: (key pose, in-between frame data, key-pose frame data).
-        let frames: Vec<(anim::Pose, TwinFrame, TwinFrame)> = props
+        // Per prop: (in-between pose, key pose, in-between frame data, key-pose frame data).
+        let frames: Vec<(anim::Pose, anim::Pose, TwinFrame, TwinFrame)> = props
             .iter()
             .map(|p| {
                 let (anim_pose, key_pose) = p.poses(times);
                 let a = p.twin.frame(&p.model, &anim_pose, p.marker_from_prop);
                 let k = p.twin.frame(&p.model, &key_pose, p.marker_from_prop);
-                (key_pose, a, k)
+                (anim_pose, key_pose, a, k)
             })
             .collect();
         timings.animate_ms = ms(t);
@@ -161,7 +162,7 @@ impl ArPipeline {
         let key_draws: Vec<Draw<'_>> = props
             .iter()
             .zip(&frames)
-            .flat_map(|(p, (_, _, k))| p.twin.draws(k))
+            .flat_map(|(p, (_, _, _, k))| p.twin.draws(k))
             .collect();
         let (key_depth_m, gain) = match self.settings.texturing {
             Texturing::Live { visibility: true } => {
@@ -193,7 +194,7 @@ impl ArPipeline {
                 let draws: Vec<Draw<'_>> = props
                     .iter()
                     .zip(&frames)
-                    .flat_map(|(p, (_, a, _))| p.twin.draws(a))
+                    .flat_map(|(p, (_, _, a, _))| p.twin.draws(a))
                     .collect();
                 let r = renderer.render(&camera, None, &draws, [0.0; 4], width, height)?;
                 (r.rgba8, r.depth_m, (0, 0), vec![0; n])
@@ -206,6 +207,17 @@ impl ArPipeline {
                     }
                     _ => renderer.upload_frame(&cpu_frame)?,
                 };
+                // The key poses posed on the CPU, in the world (marker) frame: the irradiance
+                // samples' and the sun's.
+                let posed_keys: Vec<Vec<PosedPrimitive>> = if visibility {
+                    props
+                        .iter()
+                        .zip(&frames)
+                        .map(|(p, (_, key_pose, _, _))| posed_in_world(p, key_pose))
+                        .collect()
+                } else {
+                    Vec::new()
+                };
                 // The fallback's shading: the set's light measured on the visible key props
                 // (ours), or one colour gain (the baseline without visibility).
                 let irradiance = if visibility {
@@ -217,9 +229,8 @@ impl ArPipeline {
                         width,
                         height,
                     };
-                    key_light(props.iter().zip(&frames), |(p, (key_pose, _, _)), n| {
-                        let posed = pa_model::skin::pose_drawn_meshes(&p.model, key_pose);
-                        irradiance_samples(&p.model, &posed, p.marker_from_prop, &view, n)
+                    key_light(props.iter().zip(&posed_keys), |(p, key), n| {
+                        irradiance_samples(&p.model, key, Mat4::IDENTITY, &view, n)
                     })
                 } else {
                     (Irradiance::constant(gain.unwrap_or([1.0; 3])), Vec::new())
@@ -227,25 +238,19 @@ impl ArPipeline {
                 let (irradiance, samples) = irradiance;
                 let live_camera = LiveCamera::new(camera_model, camera_from_marker);
                 let look = self.settings.look;
-                // The sun (ours): both poses posed on the CPU, as for the samples; its
-                // fractions keyed by (prop, node, primitive).
+                // The sun (ours): the in-between poses posed on the CPU too; its fractions keyed
+                // by (prop, node, primitive).
                 let mut sun_lit = Vec::new();
                 let mut sun_keys: Vec<(usize, usize, usize)> = Vec::new();
                 let sun = if visibility && look.relight && look.sun {
-                    let posed: Vec<_> = props
+                    let posed_anims: Vec<_> = props
                         .iter()
-                        .map(|p| {
-                            let (anim_pose, key_pose) = p.poses(times);
-                            let world = |pose: &anim::Pose| {
-                                let mut v = pa_model::skin::pose_drawn_meshes(&p.model, pose);
-                                to_world(&mut v, p.marker_from_prop);
-                                v
-                            };
-                            (world(&key_pose), world(&anim_pose))
-                        })
+                        .zip(&frames)
+                        .map(|(p, (anim_pose, _, _, _))| posed_in_world(p, anim_pose))
                         .collect();
+                    let posed = posed_keys.iter().zip(&posed_anims);
                     let mut prims = Vec::new();
-                    for (pi, (p, (key, anim))) in props.iter().zip(&posed).enumerate() {
+                    for (pi, (p, (key, anim))) in props.iter().zip(posed).enumerate() {
                         for (k, a) in key.iter().zip(anim) {
                             sun_keys.push((pi, k.node, k.primitive));
                             prims.push(SunPrimitive {
@@ -269,7 +274,9 @@ impl ArPipeline {
                 };
                 let mut draws: Vec<LiveDraw<'_>> = Vec::new();
                 let memory = memory_on.then_some(&self.memory.props);
-                for (pi, (p, (_, anim_frame, key_frame))) in props.iter().zip(&frames).enumerate() {
+                for (pi, (p, (_, _, anim_frame, key_frame))) in
+                    props.iter().zip(&frames).enumerate()
+                {
                     draws.extend(
                         p.twin
                             .draws(anim_frame)
@@ -529,10 +536,13 @@ fn key_light<P>(
     (Irradiance::fit_or_mean(&samples), samples)
 }
 
-/// Posed primitives from the model's scene frame into the world (marker) frame.
-fn to_world(posed: &mut [pa_model::skin::PosedPrimitive], world_from_model: Mat4) {
+/// The prop's primitives posed as drawn ([`pa_model::skin::pose_drawn_meshes`]) and placed in
+/// the world (marker) frame.
+fn posed_in_world(prop: &super::Prop, pose: &anim::Pose) -> Vec<PosedPrimitive> {
+    let mut posed = pa_model::skin::pose_drawn_meshes(&prop.model, pose);
+    let world_from_model = prop.marker_from_prop;
     let rotation = glam::Mat3::from_mat4(world_from_model);
-    for p in posed {
+    for p in &mut posed {
         for v in &mut p.positions {
             *v = world_from_model.transform_point3(*v);
         }
@@ -540,6 +550,7 @@ fn to_world(posed: &mut [pa_model::skin::PosedPrimitive], world_from_model: Mat4
             *n = (rotation * *n).normalize_or_zero();
         }
     }
+    posed
 }
 
 /// Per-channel gain that maps the model's texture (as rendered, unlit) to the live frame over
