@@ -121,6 +121,13 @@ pub enum RenderError {
     #[error("render size {width}x{height} is invalid (each side must be 1..={max})")]
     InvalidRenderSize { width: u32, height: u32, max: u32 },
     /// The camera is unusable.
+    #[error("region {region:?} is empty or outside the {width}x{height} target")]
+    RegionOutsideTarget {
+        region: crate::PixelRegion,
+        width: u32,
+        height: u32,
+    },
+
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
     /// The light is unusable.

@@ -79,9 +79,12 @@ mod texture;
 
 pub use context::adapter_rank;
 pub use error::{RenderError, NO_ADAPTER_HINT};
-pub use live::{GpuVisibility, LiveCamera, LiveDraw, LiveRenderedFrame, LiveSample, LiveTexturing};
+pub use live::{
+    GpuVisibility, LiveCamera, LiveDraw, LiveRegionFrame, LiveRenderedFrame, LiveSample,
+    LiveTexturing,
+};
 pub use mesh::{CpuMesh, GpuMesh, MAX_MORPH_TARGETS};
-pub use readback::ReadbackTimes;
+pub use readback::{PixelRegion, ReadbackTimes};
 pub use renderer::{
     CpuCamera, DirectionalLight, Draw, Lighting, RenderedFrame, Renderer, SkinnedVertices,
     MAX_JOINTS, MAX_RENDER_SIDE,

@@ -377,6 +377,39 @@ impl LiveSample {
     }
 }
 
+/// The result of [`crate::Renderer::render_live_region`]: what [`LiveRenderedFrame`] holds,
+/// for one region of the target (row-major from the region's top-left).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveRegionFrame {
+    /// The region read back.
+    pub region: crate::PixelRegion,
+    /// The whole target's (width, height).
+    pub target_size: (u32, u32),
+    /// sRGB RGBA8 colour of the region.
+    pub rgba8: Vec<u8>,
+    /// Camera-space depth (metres) of the region, `f32::INFINITY` where nothing was drawn.
+    pub depth_m: Vec<f32>,
+    /// [`LiveSample`] codes of the region, as in [`LiveRenderedFrame::live_valid`].
+    pub live_valid: Vec<u8>,
+}
+
+impl LiveRegionFrame {
+    /// Number of pixels of each kind: (valid, fallback).
+    pub fn counts(&self) -> (usize, usize) {
+        live_counts(&self.live_valid)
+    }
+}
+
+/// Number of pixels of each kind among `codes`: (valid, fallback).
+fn live_counts(codes: &[u8]) -> (usize, usize) {
+    let valid = codes.iter().filter(|&&c| c == 255).count();
+    let fallback = codes
+        .iter()
+        .filter(|&&c| LiveSample::from_code(c).is_fallback())
+        .count();
+    (valid, fallback)
+}
+
 /// The result of [`crate::Renderer::render_live`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LiveRenderedFrame {
@@ -402,12 +435,6 @@ impl LiveRenderedFrame {
 
     /// Number of pixels of each kind: (valid, fallback).
     pub fn counts(&self) -> (usize, usize) {
-        let valid = self.live_valid.iter().filter(|&&c| c == 255).count();
-        let fallback = self
-            .live_valid
-            .iter()
-            .filter(|&&c| LiveSample::from_code(c).is_fallback())
-            .count();
-        (valid, fallback)
+        live_counts(&self.live_valid)
     }
 }

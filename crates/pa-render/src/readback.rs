@@ -27,6 +27,96 @@ pub(crate) fn unpad_rows(padded: &[u8], row: usize, padded_row: usize, height: u
     out
 }
 
+/// A rectangle of a render target's pixels: columns `x..x + width`, rows `y..y + height`
+/// (from the top-left). Reading back only the region a draw covers instead of the whole
+/// target is what keeps the GPU -> CPU transfer small on a discrete GPU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelRegion {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl PixelRegion {
+    /// The whole of a `width` x `height` target.
+    pub fn full(width: u32, height: u32) -> Self {
+        Self {
+            x: 0,
+            y: 0,
+            width,
+            height,
+        }
+    }
+
+    /// Number of pixels.
+    pub fn area(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// An error unless the region is non-empty and inside a `width` x `height` target.
+    pub(crate) fn check(&self, width: u32, height: u32) -> Result<(), RenderError> {
+        let inside = |start: u32, len: u32, side: u32| {
+            len > 0 && start.checked_add(len).is_some_and(|end| end <= side)
+        };
+        if inside(self.x, self.width, width) && inside(self.y, self.height, height) {
+            Ok(())
+        } else {
+            Err(RenderError::RegionOutsideTarget {
+                region: *self,
+                width,
+                height,
+            })
+        }
+    }
+
+    /// The copy's origin in the target.
+    fn origin(&self) -> wgpu::Origin3d {
+        wgpu::Origin3d {
+            x: self.x,
+            y: self.y,
+            z: 0,
+        }
+    }
+
+    /// The copy's extent.
+    fn extent(&self) -> wgpu::Extent3d {
+        wgpu::Extent3d {
+            width: self.width,
+            height: self.height,
+            depth_or_array_layers: 1,
+        }
+    }
+}
+
+/// Records the copy of `region` of `texture` (of `texel_bytes`-byte texels) into the start of
+/// `buffer`, rows padded to [`wgpu::COPY_BYTES_PER_ROW_ALIGNMENT`].
+pub(crate) fn record_region_copy(
+    encoder: &mut wgpu::CommandEncoder,
+    texture: &wgpu::Texture,
+    buffer: &wgpu::Buffer,
+    texel_bytes: u32,
+    region: PixelRegion,
+) {
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: region.origin(),
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded_bytes_per_row_of(region.width, texel_bytes)),
+                rows_per_image: Some(region.height),
+            },
+        },
+        region.extent(),
+    );
+}
+
 /// Colour, camera-z and depth targets plus their readback buffers, for one size. Kept by the
 /// renderer and reused while the size does not change.
 pub(crate) struct Targets {
@@ -90,35 +180,10 @@ impl Targets {
         }
     }
 
-    /// Records the copies of both colour targets into their readback buffers.
-    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder) {
-        let size = wgpu::Extent3d {
-            width: self.width,
-            height: self.height,
-            depth_or_array_layers: 1,
-        };
-        for (texture, buffer) in [
-            (&self.color, &self.color_readback),
-            (&self.camera_z, &self.camera_z_readback),
-        ] {
-            encoder.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::TexelCopyBufferInfo {
-                    buffer,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(padded_bytes_per_row(self.width)),
-                        rows_per_image: Some(self.height),
-                    },
-                },
-                size,
-            );
-        }
+    /// Records the copies of `region` of both colour targets into their readback buffers.
+    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder, region: PixelRegion) {
+        record_region_copy(encoder, &self.color, &self.color_readback, 4, region);
+        record_region_copy(encoder, &self.camera_z, &self.camera_z_readback, 4, region);
     }
 }
 
@@ -162,31 +227,10 @@ impl LiveTargets {
         }
     }
 
-    /// Records the copies of all three colour targets into their readback buffers.
-    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder) {
-        self.base.record_copies(encoder);
-        let (width, height) = (self.base.width, self.base.height);
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &self.code,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &self.code_readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded_bytes_per_row_of(width, 1)),
-                    rows_per_image: Some(height),
-                },
-            },
-            wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-        );
+    /// Records the copies of `region` of all three colour targets into their readback buffers.
+    pub fn record_copies(&self, encoder: &mut wgpu::CommandEncoder, region: PixelRegion) {
+        self.base.record_copies(encoder, region);
+        record_region_copy(encoder, &self.code, &self.code_readback, 1, region);
     }
 }
 
@@ -221,18 +265,24 @@ pub(crate) fn ms_since(t: std::time::Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-/// Maps the given buffers for reading (after the copies were submitted), waits, and returns
-/// their contents; adds the wait and the copy to `times`.
+/// Bytes of a readback buffer that a copy of `region` (of `texel_bytes`-byte texels) fills.
+pub(crate) fn region_bytes(region: PixelRegion, texel_bytes: u32) -> u64 {
+    u64::from(padded_bytes_per_row_of(region.width, texel_bytes)) * u64::from(region.height)
+}
+
+/// Maps the first `bytes` of each given buffer for reading (after the copies were submitted),
+/// waits, and returns those bytes; adds the wait and the copy to `times`. Only what a copy
+/// filled is mapped and copied, not the whole buffer.
 pub(crate) fn read_buffers(
     device: &wgpu::Device,
-    buffers: &[&wgpu::Buffer],
+    buffers: &[(&wgpu::Buffer, u64)],
     times: &mut ReadbackTimes,
 ) -> Result<Vec<Vec<u8>>, RenderError> {
     let t_wait = std::time::Instant::now();
     let (sender, receiver) = std::sync::mpsc::channel();
-    for (i, buffer) in buffers.iter().enumerate() {
+    for (i, &(buffer, bytes)) in buffers.iter().enumerate() {
         let sender = sender.clone();
-        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+        buffer.map_async(wgpu::MapMode::Read, ..bytes, move |result| {
             // The receiver outlives the poll below; a send error cannot happen then.
             let _ = sender.send((i, result));
         });
@@ -251,10 +301,10 @@ pub(crate) fn read_buffers(
     times.count += 1;
     let t_copy = std::time::Instant::now();
     let mut out = Vec::with_capacity(buffers.len());
-    for buffer in buffers {
+    for &(buffer, bytes) in buffers {
         let data = {
             let view = buffer
-                .get_mapped_range(..)
+                .get_mapped_range(..bytes)
                 .map_err(|e| RenderError::Readback(e.to_string()))?;
             view.to_vec()
         };

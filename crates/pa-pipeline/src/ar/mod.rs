@@ -15,6 +15,7 @@
 mod config;
 mod fill;
 mod frame;
+mod gpu_region;
 mod hide;
 mod memory;
 mod shadows;
@@ -89,6 +90,8 @@ pub struct ArPipeline {
     tracker: Option<Tracker>,
     frame_texture: Option<GpuTexture>,
     visibility: Option<GpuVisibility>,
+    /// The wgpu path's key-pose depth, read back one region a frame ([`gpu_region`]).
+    gpu_key_depth: gpu_region::RegionDepth,
     diminisher: Diminisher,
     /// Clean plate image and its `camera_from_marker`.
     plate: Option<(ImageRgba8, Mat4)>,
@@ -187,6 +190,7 @@ impl ArPipeline {
             tracker,
             frame_texture: None,
             visibility: None,
+            gpu_key_depth: gpu_region::RegionDepth::default(),
             diminisher: Diminisher::new(),
             plate: None,
             frame_index: 0,

@@ -9,6 +9,7 @@ use pa_model::anim;
 use pa_model::skin::PosedPrimitive;
 use pa_render::{CpuCamera, CpuTexture, Draw, LiveCamera, LiveDraw, LiveTexturing, Renderer};
 
+use super::gpu_region;
 use super::sun::{sun_on_primitives, SunPrimitive};
 use super::{ms, ArError, ArPipeline, FrameView, StageTimings, Texturing};
 use crate::composite::bounding_box;
@@ -159,12 +160,39 @@ impl ArPipeline {
         // the prop (with visibility: the visibility map, read back; without: a plain unlit
         // render, whose colours also give the baseline's colour gain); then the animated twin.
         let t = Instant::now();
+        let live = matches!(self.settings.texturing, Texturing::Live { .. });
+        // Live texturing: both poses posed on the CPU too, in the world (marker) frame: the
+        // irradiance samples', the sun's, and the screen regions that the transfers to and
+        // from the GPU are limited to (gpu_region).
+        let (posed_keys, posed_anims): (Vec<Vec<PosedPrimitive>>, Vec<Vec<PosedPrimitive>>) =
+            if live {
+                props
+                    .iter()
+                    .zip(&frames)
+                    .map(|(p, (anim_pose, key_pose, _, _))| {
+                        (posed_in_world(p, key_pose), posed_in_world(p, anim_pose))
+                    })
+                    .unzip()
+            } else {
+                Default::default()
+            };
+        let region_of = |posed: &[Vec<PosedPrimitive>]| {
+            gpu_region::screen_region(
+                posed.iter().flatten().flat_map(|p| &p.positions),
+                &camera_model,
+                camera_from_marker,
+                NEAR_M,
+                width,
+                height,
+            )
+        };
+        let (key_region, twin_region) = (region_of(&posed_keys), region_of(&posed_anims));
         let key_draws: Vec<Draw<'_>> = props
             .iter()
             .zip(&frames)
             .flat_map(|(p, (_, _, _, k))| p.twin.draws(k))
             .collect();
-        let (key_depth_m, gain) = match self.settings.texturing {
+        let (key_mask, key_bbox, gain) = match self.settings.texturing {
             Texturing::Live { visibility: true } => {
                 let map = match self.visibility.as_mut() {
                     Some(v) if v.size() == (width, height) => {
@@ -175,171 +203,171 @@ impl ArPipeline {
                         .visibility
                         .insert(renderer.render_visibility(&camera, &key_draws, width, height)?),
                 };
-                (renderer.read_visibility(map)?, None)
+                let depth = renderer.read_visibility_region(map, key_region)?;
+                self.gpu_key_depth.write(width, height, key_region, &depth);
+                let (mask, bbox) = self.gpu_key_depth.mask_and_bbox();
+                (mask, bbox, None)
             }
             _ => {
                 let r = renderer.render(&camera, None, &key_draws, [0.0; 4], width, height)?;
                 let mask: Vec<bool> = r.depth_m.iter().map(|d| d.is_finite()).collect();
                 let gain = colour_gain(rgba8, &r.rgba8, &mask);
-                (r.depth_m, Some(gain))
+                let bbox = bounding_box(&mask, width as usize, height as usize);
+                (mask, bbox, Some(gain))
             }
         };
-        let cpu_frame = CpuTexture {
-            width,
-            height,
-            rgba8: rgba8.to_vec(),
-        };
-        let (twin_rgba, twin_depth, live_counts, live_codes) = match self.settings.texturing {
-            Texturing::ModelTexture => {
-                let draws: Vec<Draw<'_>> = props
-                    .iter()
-                    .zip(&frames)
-                    .flat_map(|(p, (_, _, a, _))| p.twin.draws(a))
-                    .collect();
-                let r = renderer.render(&camera, None, &draws, [0.0; 4], width, height)?;
-                (r.rgba8, r.depth_m, (0, 0), vec![0; n])
-            }
-            Texturing::Live { visibility } => {
-                let frame_tex = match self.frame_texture.take() {
-                    Some(t) if t.size() == (width, height) => {
-                        renderer.update_texture(&t, &cpu_frame)?;
-                        t
-                    }
-                    _ => renderer.upload_frame(&cpu_frame)?,
-                };
-                // The key poses posed on the CPU, in the world (marker) frame: the irradiance
-                // samples' and the sun's.
-                let posed_keys: Vec<Vec<PosedPrimitive>> = if visibility {
-                    props
+        let (twin_rgba, twin_mask, twin_bbox, live_counts, live_codes) =
+            match self.settings.texturing {
+                Texturing::ModelTexture => {
+                    let draws: Vec<Draw<'_>> = props
                         .iter()
                         .zip(&frames)
-                        .map(|(p, (_, key_pose, _, _))| posed_in_world(p, key_pose))
-                        .collect()
-                } else {
-                    Vec::new()
-                };
-                // The fallback's shading: the set's light measured on the visible key props
-                // (ours), or one colour gain (the baseline without visibility).
-                let irradiance = if visibility {
-                    let view = KeyView {
-                        camera: &camera_model,
-                        camera_from_world: camera_from_marker,
-                        frame_rgba8: rgba8,
-                        key_depth: KeyDepth::Metres(&key_depth_m),
+                        .flat_map(|(p, (_, _, a, _))| p.twin.draws(a))
+                        .collect();
+                    let r = renderer.render(&camera, None, &draws, [0.0; 4], width, height)?;
+                    let mask: Vec<bool> = r.depth_m.iter().map(|d| d.is_finite()).collect();
+                    let bbox = bounding_box(&mask, width as usize, height as usize);
+                    (r.rgba8, mask, bbox, (0, 0), vec![0; n])
+                }
+                Texturing::Live { visibility } => {
+                    // Every live sample lies where the key pose projects: only that part of the
+                    // frame travels once the texture exists.
+                    let frame_tex = match self.frame_texture.take() {
+                        Some(t) if t.size() == (width, height) => {
+                            let sample =
+                                gpu_region::sample_region(key_region, &camera_model, width, height);
+                            renderer.update_frame_region(&t, rgba8, width, height, sample)?;
+                            t
+                        }
+                        _ => renderer.upload_frame(&CpuTexture {
+                            width,
+                            height,
+                            rgba8: rgba8.to_vec(),
+                        })?,
+                    };
+                    // The fallback's shading: the set's light measured on the visible key props
+                    // (ours), or one colour gain (the baseline without visibility).
+                    let irradiance = if visibility {
+                        let view = KeyView {
+                            camera: &camera_model,
+                            camera_from_world: camera_from_marker,
+                            frame_rgba8: rgba8,
+                            key_depth: KeyDepth::Metres(self.gpu_key_depth.depth()),
+                            width,
+                            height,
+                        };
+                        key_light(props.iter().zip(&posed_keys), |(p, key), n| {
+                            irradiance_samples(&p.model, key, Mat4::IDENTITY, &view, n)
+                        })
+                    } else {
+                        (Irradiance::constant(gain.unwrap_or([1.0; 3])), Vec::new())
+                    };
+                    let (irradiance, samples) = irradiance;
+                    let live_camera = LiveCamera::new(camera_model, camera_from_marker);
+                    let look = self.settings.look;
+                    // The sun (ours): the in-between poses posed on the CPU too; its fractions keyed
+                    // by (prop, node, primitive).
+                    let mut sun_lit = Vec::new();
+                    let mut sun_keys: Vec<(usize, usize, usize)> = Vec::new();
+                    let sun = if visibility && look.relight && look.sun {
+                        let posed = posed_keys.iter().zip(&posed_anims);
+                        let mut prims = Vec::new();
+                        for (pi, (p, (key, anim))) in props.iter().zip(posed).enumerate() {
+                            for (k, a) in key.iter().zip(anim) {
+                                sun_keys.push((pi, k.node, k.primitive));
+                                prims.push(SunPrimitive {
+                                    key_positions: &k.positions,
+                                    key_normals: &k.normals,
+                                    anim_positions: &a.positions,
+                                    anim_normals: &a.normals,
+                                    shadow: &p.shadow_meshes[k.mesh][k.primitive],
+                                });
+                            }
+                        }
+                        let known = self.sun_direction_from_shadows();
+                        sun_on_primitives(&irradiance, &samples, known, &prims, &mut sun_lit)
+                    } else {
+                        None
+                    };
+                    let vis = if visibility {
+                        self.visibility.as_ref()
+                    } else {
+                        None
+                    };
+                    let mut draws: Vec<LiveDraw<'_>> = Vec::new();
+                    let memory = memory_on.then_some(&self.memory.props);
+                    for (pi, (p, (_, _, anim_frame, key_frame))) in
+                        props.iter().zip(&frames).enumerate()
+                    {
+                        draws.extend(
+                            p.twin
+                                .draws(anim_frame)
+                                .into_iter()
+                                .zip(&p.twin.primitives)
+                                .enumerate()
+                                .map(|(k, (d, tp))| {
+                                    let key_joints: &[Mat4] = if tp.mesh.is_skinned() {
+                                        &key_frame.joint_matrices[tp.node]
+                                    } else {
+                                        &[]
+                                    };
+                                    let mut live = LiveTexturing::new(
+                                        &frame_tex,
+                                        live_camera,
+                                        key_frame.world_from_node[tp.node],
+                                    )
+                                    .with_key_pose(key_joints, &key_frame.morph_weights[tp.node])
+                                    .with_fallback_irradiance(irradiance.rows);
+                                    if let Some(v) = vis {
+                                        live = live.with_visibility(v);
+                                        // The depth test decides occlusion, so grazing key-pose
+                                        // normals may sample; surfaces turned to face the camera
+                                        // take the lit fallback instead of a smeared sample.
+                                        live.min_facing_cos = VISIBLE_MIN_FACING_COS;
+                                        live.max_stretch = MAX_STRETCH;
+                                        live.relight = look.relight;
+                                        live.feather = look.feather;
+                                    }
+                                    if let Some(sun) = sun {
+                                        let lit = sun_keys
+                                            .iter()
+                                            .position(|&key| key == (pi, tp.node, tp.primitive))
+                                            .and_then(|i| sun_lit.get(i))
+                                            .filter(|l| l.len() == d.mesh.vertex_count());
+                                        if let Some(lit) = lit {
+                                            live = live.with_sun(sun, lit);
+                                        }
+                                    }
+                                    let mem = memory.and_then(|m| m.get(pi)?.attributes.get(k));
+                                    if let Some(a) = mem {
+                                        live = live.with_memory(a);
+                                    }
+                                    d.with_live(live)
+                                }),
+                        );
+                    }
+                    let r = renderer.render_live_region(
+                        &camera,
+                        None,
+                        &draws,
+                        [0.0; 4],
                         width,
                         height,
-                    };
-                    key_light(props.iter().zip(&posed_keys), |(p, key), n| {
-                        irradiance_samples(&p.model, key, Mat4::IDENTITY, &view, n)
-                    })
-                } else {
-                    (Irradiance::constant(gain.unwrap_or([1.0; 3])), Vec::new())
-                };
-                let (irradiance, samples) = irradiance;
-                let live_camera = LiveCamera::new(camera_model, camera_from_marker);
-                let look = self.settings.look;
-                // The sun (ours): the in-between poses posed on the CPU too; its fractions keyed
-                // by (prop, node, primitive).
-                let mut sun_lit = Vec::new();
-                let mut sun_keys: Vec<(usize, usize, usize)> = Vec::new();
-                let sun = if visibility && look.relight && look.sun {
-                    let posed_anims: Vec<_> = props
-                        .iter()
-                        .zip(&frames)
-                        .map(|(p, (anim_pose, _, _, _))| posed_in_world(p, anim_pose))
-                        .collect();
-                    let posed = posed_keys.iter().zip(&posed_anims);
-                    let mut prims = Vec::new();
-                    for (pi, (p, (key, anim))) in props.iter().zip(posed).enumerate() {
-                        for (k, a) in key.iter().zip(anim) {
-                            sun_keys.push((pi, k.node, k.primitive));
-                            prims.push(SunPrimitive {
-                                key_positions: &k.positions,
-                                key_normals: &k.normals,
-                                anim_positions: &a.positions,
-                                anim_normals: &a.normals,
-                                shadow: &p.shadow_meshes[k.mesh][k.primitive],
-                            });
-                        }
-                    }
-                    let known = self.sun_direction_from_shadows();
-                    sun_on_primitives(&irradiance, &samples, known, &prims, &mut sun_lit)
-                } else {
-                    None
-                };
-                let vis = if visibility {
-                    self.visibility.as_ref()
-                } else {
-                    None
-                };
-                let mut draws: Vec<LiveDraw<'_>> = Vec::new();
-                let memory = memory_on.then_some(&self.memory.props);
-                for (pi, (p, (_, _, anim_frame, key_frame))) in
-                    props.iter().zip(&frames).enumerate()
-                {
-                    draws.extend(
-                        p.twin
-                            .draws(anim_frame)
-                            .into_iter()
-                            .zip(&p.twin.primitives)
-                            .enumerate()
-                            .map(|(k, (d, tp))| {
-                                let key_joints: &[Mat4] = if tp.mesh.is_skinned() {
-                                    &key_frame.joint_matrices[tp.node]
-                                } else {
-                                    &[]
-                                };
-                                let mut live = LiveTexturing::new(
-                                    &frame_tex,
-                                    live_camera,
-                                    key_frame.world_from_node[tp.node],
-                                )
-                                .with_key_pose(key_joints, &key_frame.morph_weights[tp.node])
-                                .with_fallback_irradiance(irradiance.rows);
-                                if let Some(v) = vis {
-                                    live = live.with_visibility(v);
-                                    // The depth test decides occlusion, so grazing key-pose
-                                    // normals may sample; surfaces turned to face the camera
-                                    // take the lit fallback instead of a smeared sample.
-                                    live.min_facing_cos = VISIBLE_MIN_FACING_COS;
-                                    live.max_stretch = MAX_STRETCH;
-                                    live.relight = look.relight;
-                                    live.feather = look.feather;
-                                }
-                                if let Some(sun) = sun {
-                                    let lit = sun_keys
-                                        .iter()
-                                        .position(|&key| key == (pi, tp.node, tp.primitive))
-                                        .and_then(|i| sun_lit.get(i))
-                                        .filter(|l| l.len() == d.mesh.vertex_count());
-                                    if let Some(lit) = lit {
-                                        live = live.with_sun(sun, lit);
-                                    }
-                                }
-                                let mem = memory.and_then(|m| m.get(pi)?.attributes.get(k));
-                                if let Some(a) = mem {
-                                    live = live.with_memory(a);
-                                }
-                                d.with_live(live)
-                            }),
-                    );
+                        twin_region,
+                    )?;
+                    drop(draws);
+                    self.frame_texture = Some(frame_tex);
+                    let (rgba, mask, bbox, codes) = gpu_region::twin_from_region(&r);
+                    (rgba, mask, bbox, r.counts(), codes)
                 }
-                let r = renderer.render_live(&camera, None, &draws, [0.0; 4], width, height)?;
-                let counts = r.counts();
-                drop(draws);
-                self.frame_texture = Some(frame_tex);
-                (r.frame.rgba8, r.frame.depth_m, counts, r.live_valid)
-            }
-        };
+            };
         timings.texture_ms = ms(t) + memory_ms;
-        let twin_mask: Vec<bool> = twin_depth.iter().map(|d| d.is_finite()).collect();
-        let key_mask: Vec<bool> = key_depth_m.iter().map(|d| d.is_finite()).collect();
         Ok(Textured {
-            key_bbox: bounding_box(&key_mask, width as usize, height as usize),
             key_mask,
-            twin_bbox: bounding_box(&twin_mask, width as usize, height as usize),
+            key_bbox,
             twin_rgba,
             twin_mask,
+            twin_bbox,
             live_counts,
             live_codes,
         })

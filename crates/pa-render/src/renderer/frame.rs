@@ -6,7 +6,7 @@ use super::draw::{
 };
 use super::{CpuCamera, Draw, Lighting, RenderedFrame, Renderer};
 use crate::error::RenderError;
-use crate::readback::{self, ReadbackTimes, Targets};
+use crate::readback::{self, PixelRegion, ReadbackTimes, Targets};
 
 impl Renderer {
     /// Renders `draws` seen by `camera` into a `width` x `height` image and reads back colour
@@ -75,7 +75,8 @@ impl Renderer {
                 record_draw(&mut pass, d, bind_group, &self.white_texture);
             }
         }
-        targets.record_copies(&mut encoder);
+        let region = PixelRegion::full(width, height);
+        targets.record_copies(&mut encoder, region);
         self.ctx.queue.submit([encoder.finish()]);
 
         let oom = pollster::block_on(oom.pop());
@@ -87,22 +88,30 @@ impl Renderer {
             });
         }
 
-        let frame = read_frame(device, &targets, &mut self.readback_times)?;
+        let frame = read_frame(device, &targets, region, &mut self.readback_times)?;
         self.targets = Some(targets);
         Ok(frame)
     }
 }
 
-/// Maps the colour and camera-z readback buffers of `targets` (copies already submitted).
+/// Maps the colour and camera-z readback buffers of `targets` (copies of `region` already
+/// submitted): a frame of the region's size.
 pub(super) fn read_frame(
     device: &wgpu::Device,
     targets: &Targets,
+    region: PixelRegion,
     times: &mut ReadbackTimes,
 ) -> Result<RenderedFrame, RenderError> {
-    let (width, height) = (targets.width, targets.height);
+    let (width, height) = (region.width, region.height);
     let data = readback::read_buffers(
         device,
-        &[&targets.color_readback, &targets.camera_z_readback],
+        &[
+            (&targets.color_readback, readback::region_bytes(region, 4)),
+            (
+                &targets.camera_z_readback,
+                readback::region_bytes(region, 4),
+            ),
+        ],
         times,
     );
     let t_unpad = std::time::Instant::now();

@@ -10,11 +10,11 @@ use super::draw::{
     camera_clip_from_world, color_attachment, depth_attachment, lighting_uniforms, record_draw,
 };
 use super::frame::read_frame;
-use super::{finite_mat, mat, CpuCamera, Draw, Lighting, Renderer};
+use super::{finite_mat, mat, CpuCamera, Draw, Lighting, RenderedFrame, Renderer};
 use crate::error::RenderError;
-use crate::live::{LiveDraw, LiveRenderedFrame, LiveTexturing};
+use crate::live::{LiveDraw, LiveRegionFrame, LiveRenderedFrame, LiveTexturing};
 use crate::pipeline::LiveUniforms;
-use crate::readback::{self, LiveTargets};
+use crate::readback::{self, LiveTargets, PixelRegion};
 
 impl Renderer {
     /// Checks the live-texturing block of draw `i`.
@@ -294,7 +294,37 @@ impl Renderer {
         width: u32,
         height: u32,
     ) -> Result<LiveRenderedFrame, RenderError> {
+        let region = PixelRegion::full(width, height);
+        let r =
+            self.render_live_region(camera, lighting, draws, clear_rgba, width, height, region)?;
+        Ok(LiveRenderedFrame {
+            frame: RenderedFrame {
+                width,
+                height,
+                rgba8: r.rgba8,
+                depth_m: r.depth_m,
+            },
+            live_valid: r.live_valid,
+        })
+    }
+
+    /// [`Renderer::render_live`] into a `width` x `height` target, reading back `region` of it
+    /// only: the caller knows the draws cover nothing outside it (there the target holds
+    /// `clear_rgba`, infinite depth and code 0). The transfer shrinks with the region, which
+    /// on a discrete GPU is most of the frame's cost.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_live_region(
+        &mut self,
+        camera: &CpuCamera,
+        lighting: Option<&Lighting>,
+        draws: &[LiveDraw<'_>],
+        clear_rgba: [f32; 4],
+        width: u32,
+        height: u32,
+        region: PixelRegion,
+    ) -> Result<LiveRegionFrame, RenderError> {
         self.check_render_size(width, height)?;
+        region.check(width, height)?;
         if self.ctx.limits.max_color_attachments < 3 {
             return Err(RenderError::UnsupportedAdapter {
                 details: format!(
@@ -370,7 +400,7 @@ impl Renderer {
                 record_draw(&mut pass, &ld.draw, group1, &self.white_texture);
             }
         }
-        targets.record_copies(&mut encoder);
+        targets.record_copies(&mut encoder, region);
         self.ctx.queue.submit([encoder.finish()]);
 
         let oom = pollster::block_on(oom.pop());
@@ -382,17 +412,26 @@ impl Renderer {
             });
         }
 
-        let frame = read_frame(device, &targets.base, &mut self.readback_times)?;
-        let codes =
-            readback::read_buffers(device, &[&targets.code_readback], &mut self.readback_times)?;
+        let frame = read_frame(device, &targets.base, region, &mut self.readback_times)?;
+        let codes = readback::read_buffers(
+            device,
+            &[(&targets.code_readback, readback::region_bytes(region, 1))],
+            &mut self.readback_times,
+        )?;
         let t_unpad = std::time::Instant::now();
-        let padded = readback::padded_bytes_per_row_of(width, 1) as usize;
+        let padded = readback::padded_bytes_per_row_of(region.width, 1) as usize;
         let live_valid = codes
             .first()
-            .map(|c| readback::unpad_rows(c, width as usize, padded, height as usize))
+            .map(|c| readback::unpad_rows(c, region.width as usize, padded, region.height as usize))
             .unwrap_or_default();
         self.readback_times.copy_ms += readback::ms_since(t_unpad);
         self.live_targets = Some(targets);
-        Ok(LiveRenderedFrame { frame, live_valid })
+        Ok(LiveRegionFrame {
+            region,
+            target_size: (width, height),
+            rgba8: frame.rgba8,
+            depth_m: frame.depth_m,
+            live_valid,
+        })
     }
 }

@@ -30,7 +30,7 @@ use crate::context::{describe, GpuContext};
 use crate::error::RenderError;
 use crate::mesh::{self, CpuMesh, GpuMesh};
 use crate::pipeline::{Pipelines, CAMERA_Z_FORMAT};
-use crate::readback::{self, LiveTargets, ReadbackTimes, Targets};
+use crate::readback::{self, LiveTargets, PixelRegion, ReadbackTimes, Targets};
 use crate::texture::{self, CpuTexture, GpuTexture};
 
 /// Most joint matrices per draw.
@@ -226,6 +226,73 @@ impl Renderer {
             });
         }
         texture::write_levels(&self.ctx.queue, &texture.texture, data);
+        Ok(())
+    }
+
+    /// Overwrites `region` of a camera-frame texture (from [`Renderer::upload_frame`]: one
+    /// mip level) with that region of `rgba8`, a whole `width` x `height` sRGB RGBA8 frame of
+    /// the texture's size; the rest of the texture keeps its earlier contents. Only the
+    /// region's rows travel: the per-frame path when the caller knows which pixels the live
+    /// samples can reach.
+    pub fn update_frame_region(
+        &mut self,
+        texture: &GpuTexture,
+        rgba8: &[u8],
+        width: u32,
+        height: u32,
+        region: PixelRegion,
+    ) -> Result<(), RenderError> {
+        if texture.renderer_id != self.id {
+            return Err(RenderError::ForeignResource {
+                draw: 0,
+                what: "texture",
+            });
+        }
+        if (width, height) != (texture.width, texture.height) {
+            return Err(RenderError::TextureSizeMismatch {
+                expected: (texture.width, texture.height),
+                actual: (width, height),
+            });
+        }
+        let expected = width as usize * height as usize * 4;
+        if rgba8.len() != expected {
+            return Err(RenderError::TextureDataLength {
+                width,
+                height,
+                expected,
+                actual: rgba8.len(),
+            });
+        }
+        region.check(width, height)?;
+        if texture.mip_level_count() != 1 {
+            return Err(RenderError::Gpu {
+                during: "frame region update",
+                message: "the texture has a mip chain; use update_texture".to_owned(),
+            });
+        }
+        self.ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: region.x,
+                    y: region.y,
+                    z: 0,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            rgba8,
+            wgpu::TexelCopyBufferLayout {
+                offset: (u64::from(region.y) * u64::from(width) + u64::from(region.x)) * 4,
+                bytes_per_row: Some(4 * width),
+                rows_per_image: Some(height),
+            },
+            wgpu::Extent3d {
+                width: region.width,
+                height: region.height,
+                depth_or_array_layers: 1,
+            },
+        );
         Ok(())
     }
 

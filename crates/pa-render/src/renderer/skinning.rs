@@ -108,7 +108,11 @@ impl Renderer {
         self.ctx.queue.submit([encoder.finish()]);
         self.pop_scope(validation, "GPU skinning")?;
 
-        let data = readback::read_buffers(device, &[&staging], &mut self.readback_times)?;
+        let data = readback::read_buffers(
+            device,
+            &[(&staging, staging.size())],
+            &mut self.readback_times,
+        )?;
         let floats: Vec<f32> = data
             .first()
             .map(|d| {

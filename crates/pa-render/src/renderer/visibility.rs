@@ -8,7 +8,7 @@ use super::{CpuCamera, Draw, Renderer};
 use crate::error::RenderError;
 use crate::live::GpuVisibility;
 use crate::pipeline::{CAMERA_Z_FORMAT, DEPTH_FORMAT};
-use crate::readback;
+use crate::readback::{self, PixelRegion};
 
 impl Renderer {
     /// Renders the key-pose visibility map: the camera-space z of the nearest surface of
@@ -135,6 +135,17 @@ impl Renderer {
         &mut self,
         visibility: &mut GpuVisibility,
     ) -> Result<Vec<f32>, RenderError> {
+        let region = PixelRegion::full(visibility.width, visibility.height);
+        self.read_visibility_region(visibility, region)
+    }
+
+    /// [`Renderer::read_visibility`] of `region` of the map only (row-major from the region's
+    /// top-left): the caller knows the key pose covers nothing outside it.
+    pub fn read_visibility_region(
+        &mut self,
+        visibility: &mut GpuVisibility,
+        region: PixelRegion,
+    ) -> Result<Vec<f32>, RenderError> {
         if visibility.renderer_id != self.id {
             return Err(RenderError::ForeignResource {
                 draw: 0,
@@ -142,12 +153,12 @@ impl Renderer {
             });
         }
         let (width, height) = (visibility.width, visibility.height);
-        let padded_row = readback::padded_bytes_per_row(width);
+        region.check(width, height)?;
         let device = &self.ctx.device;
         let buffer = visibility.readback.get_or_insert_with(|| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("pa-render visibility readback"),
-                size: u64::from(padded_row) * u64::from(height),
+                size: u64::from(readback::padded_bytes_per_row(width)) * u64::from(height),
                 usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
                 mapped_at_creation: false,
             })
@@ -155,31 +166,20 @@ impl Renderer {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("pa-render visibility readback"),
         });
-        encoder.copy_texture_to_buffer(
-            visibility.camera_z.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded_row),
-                    rows_per_image: Some(height),
-                },
-            },
-            wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-        );
+        readback::record_region_copy(&mut encoder, &visibility.camera_z, buffer, 4, region);
         self.ctx.queue.submit([encoder.finish()]);
-        let data = readback::read_buffers(device, &[buffer], &mut self.readback_times);
+        let data = readback::read_buffers(
+            device,
+            &[(buffer, readback::region_bytes(region, 4))],
+            &mut self.readback_times,
+        );
         let t = std::time::Instant::now();
         let bytes = match data.as_deref() {
             Ok([bytes]) => readback::unpad_rows(
                 bytes,
-                width as usize * 4,
-                padded_row as usize,
-                height as usize,
+                region.width as usize * 4,
+                readback::padded_bytes_per_row(region.width) as usize,
+                region.height as usize,
             ),
             _ => {
                 return Err(data.err().unwrap_or_else(|| {
