@@ -271,6 +271,97 @@ fn the_prior_keeps_a_static_scene_steady() {
     }
 }
 
+/// The temporal blend: with the same search, each filled pixel with a prior colour becomes
+/// `(1 - beta) * fill + beta * prior` (within rounding), so the frame-to-frame change of the
+/// filled region shrinks by `1 - beta` where the prior is the previous result itself.
+#[test]
+fn the_temporal_blend_mixes_the_warped_prior_in() {
+    let (w, h) = (160u32, 120u32);
+    let (tx, ty) = (3.0, -2.0);
+    let scene = |x: f64, y: f64| wood(x, y, 1.0);
+    let t1 = noisy(&image_from_rgb(w, h, scene), 1, 6.0);
+    let t2 = noisy(&image_from_rgb(w, h, |x, y| scene(x - tx, y - ty)), 2, 6.0);
+    let m1 = blob(w, h, 78.0, 62.0, 20.0, 24.0);
+    let m2 = blob(w, h, 78.0 + tx, 62.0 + ty, 20.0, 24.0);
+    let mut f1 = t1.clone();
+    paint(&mut f1, &m1, PROP);
+    Diminisher::new()
+        .fill(&mut f1, &m1, &patch())
+        .expect("fill 1");
+    let prior = PatchPrior {
+        image: &f1,
+        mask: &m1,
+        current_from_previous: Homography::from_row_major([
+            1.0, 0.0, tx, 0.0, 1.0, ty, 0.0, 0.0, 1.0,
+        ]),
+    };
+    let fill2 = |temporal_blend: f32| {
+        let mut f2 = t2.clone();
+        paint(&mut f2, &m2, PROP);
+        let method = FillMethod::Patch(PatchFill {
+            params: PatchParams {
+                temporal_blend,
+                ..PatchParams::default()
+            },
+            prior: Some(prior),
+            ..PatchFill::new()
+        });
+        Diminisher::new()
+            .fill(&mut f2, &m2, &method)
+            .expect("fill 2");
+        f2
+    };
+    let (plain, blended) = (fill2(0.0), fill2(0.5));
+    let moved1 = ImageRgba8::from_fn(w, h, |x, y| {
+        let sx = (i64::from(x) - tx as i64).clamp(0, i64::from(w) - 1) as u32;
+        let sy = (i64::from(y) - ty as i64).clamp(0, i64::from(h) - 1) as u32;
+        f1.get(sx, sy).expect("in image")
+    })
+    .expect("image");
+    let mut worst = 0.0f64;
+    for y in 0..h {
+        for x in 0..w {
+            if m2.as_slice()[(y * w + x) as usize] == 0 {
+                assert_eq!(plain.get(x, y), blended.get(x, y), "outside the mask");
+                continue;
+            }
+            let (a, b, p) = (
+                plain.get(x, y).expect("px"),
+                blended.get(x, y).expect("px"),
+                moved1.get(x, y).expect("px"),
+            );
+            for c in 0..3 {
+                let want = 0.5 * (f64::from(a[c]) + f64::from(p[c]));
+                worst = worst.max((f64::from(b[c]) - want).abs());
+            }
+        }
+    }
+    assert!(worst <= 1.0, "blend off its formula by {worst} levels");
+    let change = |img: &ImageRgba8| mse_rgb(img, &moved1, Some(&m2)).expect("mse");
+    let (c0, c5) = (change(&plain), change(&blended));
+    println!("frame-to-frame change (MSE): blend 0 {c0:.1}, blend 0.5 {c5:.1}");
+    assert!(c5 < 0.3 * c0, "{c5} vs {c0}");
+    let bad = FillMethod::Patch(PatchFill {
+        params: PatchParams {
+            temporal_blend: 1.0,
+            ..PatchParams::default()
+        },
+        ..PatchFill::new()
+    });
+    let mut f = t2.clone();
+    let e = Diminisher::new().fill(&mut f, &m2, &bad);
+    assert!(
+        matches!(
+            e,
+            Err(DiminishError::InvalidParameter {
+                name: "temporal_blend",
+                ..
+            })
+        ),
+        "{e:?}"
+    );
+}
+
 /// With a clean plate covering the whole hole the plate is used for every pixel; where the
 /// plate has no data, the patch fill covers the rest.
 #[test]

@@ -46,7 +46,9 @@
 //! colour stands for a hole not matched yet) and adds the temporal term above, so the fill of
 //! a background seen again follows the previous frame's instead of jumping between equally
 //! good matches. It is a prior on colours, not the previous field: a static frame filled again
-//! with its own result as prior is close to, not identical with, the first fill.
+//! with its own result as prior is close to, not identical with, the first fill. Last, each
+//! filled pixel with a prior colour is blended with it ([`PatchParams::temporal_blend`]): a
+//! running average of what the fill gave the same table point over the frames.
 //!
 //! Cost: O(levels x sweeps x holes x candidates x patch area) on the bounding box; about half
 //! of it is the finest level's bookkeeping (state, upsampling, vote), done in parallel.
@@ -95,6 +97,14 @@ pub struct PatchParams {
     pub vote_radius: u32,
     /// Seed of the random search.
     pub seed: u64,
+    /// Temporal blend `beta` in [0, 1): a filled pixel with a prior colour takes
+    /// `(1 - beta) * fill + beta * prior`, a running average of the fills of the same table
+    /// point over the frames (0: the fill alone; about 3 frames' memory at the default 0.7).
+    /// Measured with `eval` (revealed PSNR dB / flicker levels at 0, 0.3, 0.5, 0.7): Blender
+    /// bust 25.11/6.74, 25.84/4.31, 26.25/2.99, 26.53/1.77; Blender CesiumMan 20.15/4.59,
+    /// 20.49/3.54, 20.62/2.95, 20.62/2.39; generated `hard` 16.87/7.61, -, 17.07/4.14,
+    /// 17.45/2.48.
+    pub temporal_blend: f32,
 }
 
 impl Default for PatchParams {
@@ -112,6 +122,7 @@ impl Default for PatchParams {
             fine_search_px: 2,
             vote_radius: 1,
             seed: 0x5EED_F111,
+            temporal_blend: 0.7,
         }
     }
 }
@@ -144,6 +155,13 @@ impl PatchParams {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(name, f64::from(v), "must be finite and >= 0");
             }
+        }
+        if !(self.temporal_blend >= 0.0 && self.temporal_blend < 1.0) {
+            return bad(
+                "temporal_blend",
+                f64::from(self.temporal_blend),
+                "must be in [0, 1)",
+            );
         }
         if self.fine_search_px > 64 {
             return bad(
@@ -295,6 +313,13 @@ pub(crate) fn patch_fill_region(
             &mut scratch.next,
             params,
         );
+        // The prior on the finest level too, for the temporal blend.
+        let blend = params.temporal_blend;
+        if blend > 0.0 {
+            if let Some((p, hom)) = fill.prior.as_ref().zip(prior_from_current.as_ref()) {
+                pyramid::sample_level_prior(&mut scratch.levels[0], 0, region, p, hom);
+            }
+        }
         // Write the finest level's fill back.
         let lv = &scratch.levels[0];
         let stride = fw as usize * 4;
@@ -309,7 +334,13 @@ pub(crate) fn patch_fill_region(
             if to_fill[li] != FILL {
                 continue;
             }
-            let c = lv.color[p];
+            let mut c = lv.color[p];
+            if blend > 0.0 && lv.prior_ok.get(p) == Some(&true) {
+                let prior = lv.prior[p];
+                for ch in 0..3 {
+                    c[ch] += blend * (prior[ch] - c[ch]);
+                }
+            }
             let i = y * stride + x * 4;
             for ch in 0..3 {
                 data[i + ch] = (c[ch] + 0.5).clamp(0.0, 255.0) as u8;

@@ -201,7 +201,7 @@ pub(super) fn build(
 
 /// Samples the prior for the holes of `lv`, level `level` of the pyramid over `region` (each
 /// pixel at the centre of the full-resolution pixels it covers); rows in parallel.
-fn sample_level_prior(
+pub(super) fn sample_level_prior(
     lv: &mut Level,
     level: usize,
     region: Rect,

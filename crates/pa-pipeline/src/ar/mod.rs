@@ -259,6 +259,13 @@ impl ArPipeline {
     /// previous result before a frame that starts a new sequence.
     pub fn reset_tracker(&mut self) {
         self.patch_prior = None;
+        self.reset_tracking();
+    }
+
+    /// Forgets the tracker's history only: the next frame is tracked as a still, while the
+    /// patch fill keeps the previous frame's result as its prior (stills of one take, as
+    /// `eval --set` measures them).
+    pub fn reset_tracking(&mut self) {
         if let Some(tracker) = &mut self.tracker {
             tracker.reset();
         }

@@ -216,7 +216,8 @@ pub fn run_set_with<E: From<SceneError>>(
     let mut all = Vec::new();
     for f in &set.frames {
         let img = read_frame(set, f)?;
-        pipeline.reset_tracker();
+        // Each still tracked alone; the fill sees one take.
+        pipeline.reset_tracking();
         let out = pipeline
             .process(
                 renderer,
