@@ -205,11 +205,19 @@ fn noisy(img: &ImageRgba8, seed: u32, amp: f64) -> ImageRgba8 {
     out
 }
 
-/// A static background seen twice (the camera moved by (3, -2) px, fresh sensor noise): filled
-/// with the previous result warped by the homography as prior, the filled pixels change much
-/// less from one frame to the next than when each frame is filled alone.
-#[test]
-fn the_prior_keeps_a_static_scene_steady() {
+/// A static wood background seen twice, the camera moved by (3, -2) px, fresh sensor noise:
+/// frame 2's truth and hole, frame 1's filled result and hole, frame 1's result moved by the
+/// camera motion, and the homography from frame 1 to frame 2.
+struct TwoFrames {
+    t2: ImageRgba8,
+    m2: Mask,
+    f1: ImageRgba8,
+    m1: Mask,
+    moved1: ImageRgba8,
+    shift: Homography,
+}
+
+fn two_frames() -> TwoFrames {
     let (w, h) = (160u32, 120u32);
     let (tx, ty) = (3.0, -2.0);
     let scene = |x: f64, y: f64| wood(x, y, 1.0);
@@ -219,14 +227,46 @@ fn the_prior_keeps_a_static_scene_steady() {
     let m2 = blob(w, h, 78.0 + tx, 62.0 + ty, 20.0, 24.0);
     let mut f1 = t1.clone();
     paint(&mut f1, &m1, PROP);
-    let mut dim = Diminisher::new();
-    dim.fill(&mut f1, &m1, &patch()).expect("fill 1");
+    Diminisher::new()
+        .fill(&mut f1, &m1, &patch())
+        .expect("fill 1");
+    let moved1 = ImageRgba8::from_fn(w, h, |x, y| {
+        let sx = (i64::from(x) - tx as i64).clamp(0, i64::from(w) - 1) as u32;
+        let sy = (i64::from(y) - ty as i64).clamp(0, i64::from(h) - 1) as u32;
+        f1.get(sx, sy).expect("in image")
+    })
+    .expect("image");
+    let shift = Homography::from_row_major([1.0, 0.0, tx, 0.0, 1.0, ty, 0.0, 0.0, 1.0]);
+    TwoFrames {
+        t2,
+        m2,
+        f1,
+        m1,
+        moved1,
+        shift,
+    }
+}
+
+/// A static background seen twice ([`two_frames`]): filled with the previous result warped by
+/// the homography as prior (no blend), the filled pixels change much less from one frame to
+/// the next than when each frame is filled alone.
+#[test]
+fn the_prior_keeps_a_static_scene_steady() {
+    let TwoFrames {
+        t2,
+        m2,
+        f1,
+        m1,
+        moved1,
+        shift,
+    } = two_frames();
     let fill2 = |prior: Option<PatchPrior<'_>>, seed: u64| {
         let mut f2 = t2.clone();
         paint(&mut f2, &m2, PROP);
         let method = FillMethod::Patch(PatchFill {
             params: PatchParams {
                 seed,
+                temporal_blend: 0.0,
                 ..PatchParams::default()
             },
             prior,
@@ -239,7 +279,6 @@ fn the_prior_keeps_a_static_scene_steady() {
             .expect("fill 2");
         f2
     };
-    let shift = Homography::from_row_major([1.0, 0.0, tx, 0.0, 1.0, ty, 0.0, 0.0, 1.0]);
     let prior = PatchPrior {
         image: &f1,
         mask: &m1,
@@ -247,12 +286,6 @@ fn the_prior_keeps_a_static_scene_steady() {
     };
     // The change of the filled region: frame 2's fill against frame 1's result moved by the
     // camera motion.
-    let moved1 = ImageRgba8::from_fn(w, h, |x, y| {
-        let sx = (i64::from(x) - tx as i64).clamp(0, i64::from(w) - 1) as u32;
-        let sy = (i64::from(y) - ty as i64).clamp(0, i64::from(h) - 1) as u32;
-        f1.get(sx, sy).expect("in image")
-    })
-    .expect("image");
     let change = |img: &ImageRgba8| mse_rgb(img, &moved1, Some(&m2)).expect("mse");
     let without: Vec<f64> = [5u64, 6, 7]
         .iter()
@@ -276,24 +309,18 @@ fn the_prior_keeps_a_static_scene_steady() {
 /// filled region shrinks by `1 - beta` where the prior is the previous result itself.
 #[test]
 fn the_temporal_blend_mixes_the_warped_prior_in() {
-    let (w, h) = (160u32, 120u32);
-    let (tx, ty) = (3.0, -2.0);
-    let scene = |x: f64, y: f64| wood(x, y, 1.0);
-    let t1 = noisy(&image_from_rgb(w, h, scene), 1, 6.0);
-    let t2 = noisy(&image_from_rgb(w, h, |x, y| scene(x - tx, y - ty)), 2, 6.0);
-    let m1 = blob(w, h, 78.0, 62.0, 20.0, 24.0);
-    let m2 = blob(w, h, 78.0 + tx, 62.0 + ty, 20.0, 24.0);
-    let mut f1 = t1.clone();
-    paint(&mut f1, &m1, PROP);
-    Diminisher::new()
-        .fill(&mut f1, &m1, &patch())
-        .expect("fill 1");
+    let TwoFrames {
+        t2,
+        m2,
+        f1,
+        m1,
+        moved1,
+        shift,
+    } = two_frames();
     let prior = PatchPrior {
         image: &f1,
         mask: &m1,
-        current_from_previous: Homography::from_row_major([
-            1.0, 0.0, tx, 0.0, 1.0, ty, 0.0, 0.0, 1.0,
-        ]),
+        current_from_previous: shift,
     };
     let fill2 = |temporal_blend: f32| {
         let mut f2 = t2.clone();
@@ -312,12 +339,7 @@ fn the_temporal_blend_mixes_the_warped_prior_in() {
         f2
     };
     let (plain, blended) = (fill2(0.0), fill2(0.5));
-    let moved1 = ImageRgba8::from_fn(w, h, |x, y| {
-        let sx = (i64::from(x) - tx as i64).clamp(0, i64::from(w) - 1) as u32;
-        let sy = (i64::from(y) - ty as i64).clamp(0, i64::from(h) - 1) as u32;
-        f1.get(sx, sy).expect("in image")
-    })
-    .expect("image");
+    let (w, h) = t2.size();
     let mut worst = 0.0f64;
     for y in 0..h {
         for x in 0..w {
