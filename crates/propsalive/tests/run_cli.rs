@@ -339,3 +339,39 @@ fn leftovers_of_a_crash_are_repaired() {
     assert_eq!(frames(&out), frames(&take.reference));
     assert_eq!(log(&out).len(), STILLS as usize);
 }
+
+/// Regression (stop 26): the pipeline carried state from one still to the next (the patch
+/// fill's prior, since stop 26 also the sun's running direction), so the frames rendered after
+/// a resume differed from an uninterrupted take's. A take with the patch fill, its last half
+/// deleted and resumed, must give the same bytes.
+#[test]
+fn regression_a_resumed_patch_take_equals_an_uninterrupted_one() {
+    let _l = lock();
+    let Some(take) = take() else { return };
+    let full = take.root.join("patch_full");
+    let _ = std::fs::remove_dir_all(&full);
+    let o = run(&take.shot, &take.stills, &full, &["--fill", "patch"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reference = frames(&full);
+    assert_eq!(reference.len(), STILLS as usize);
+    // The same take with its frames from the sixth on gone: the resume renders them again.
+    let half = take.root.join("patch_half");
+    let _ = std::fs::remove_dir_all(&half);
+    let o = run(&take.shot, &take.stills, &half, &["--fill", "patch"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in reference.keys().skip(STILLS as usize / 2) {
+        std::fs::remove_file(half.join("frames").join(name)).expect("remove a frame");
+    }
+    let o = run(&take.shot, &take.stills, &half, &["--fill", "patch"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    println!("{}", e.lines().last().unwrap_or_default());
+    assert!(e.contains(&format!("{} processed", STILLS / 2)), "{e}");
+    let got = frames(&half);
+    for (name, bytes) in &reference {
+        assert!(
+            got.get(name) == Some(bytes),
+            "{name} differs from the uninterrupted take"
+        );
+    }
+}

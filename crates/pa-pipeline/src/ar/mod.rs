@@ -92,6 +92,8 @@ pub struct ArPipeline {
     visibility: Option<GpuVisibility>,
     /// The wgpu path's key-pose depth, read back one region a frame ([`gpu_region`]).
     gpu_key_depth: gpu_region::RegionDepth,
+    /// The sun's direction over the take ([`sun::SunTrack`]); forgotten by `reset_tracker`.
+    sun_track: sun::SunTrack,
     diminisher: Diminisher,
     /// Clean plate image and its `camera_from_marker`.
     plate: Option<(ImageRgba8, Mat4)>,
@@ -191,6 +193,7 @@ impl ArPipeline {
             frame_texture: None,
             visibility: None,
             gpu_key_depth: gpu_region::RegionDepth::default(),
+            sun_track: sun::SunTrack::default(),
             diminisher: Diminisher::new(),
             plate: None,
             frame_index: 0,
@@ -255,16 +258,17 @@ impl ArPipeline {
         self.props[0].marker_from_prop = marker_from_prop;
     }
 
-    /// Forgets the tracker's history (state, filter, search region) and the patch fill's
-    /// previous result before a frame that starts a new sequence.
+    /// Forgets the tracker's history (state, filter, search region), the patch fill's previous
+    /// result and the sun's direction before a frame that starts a new sequence.
     pub fn reset_tracker(&mut self) {
         self.patch_prior = None;
+        self.sun_track = sun::SunTrack::default();
         self.reset_tracking();
     }
 
     /// Forgets the tracker's history only: the next frame is tracked as a still, while the
-    /// patch fill keeps the previous frame's result as its prior (stills of one take, as
-    /// `eval --set` measures them).
+    /// patch fill keeps the previous frame's result as its prior and the sun its direction
+    /// (stills of one take, as `eval --set` measures them).
     pub fn reset_tracking(&mut self) {
         if let Some(tracker) = &mut self.tracker {
             tracker.reset();

@@ -285,7 +285,8 @@ impl ArPipeline {
                             }
                         }
                         let known = self.sun_direction_from_shadows();
-                        sun_on_primitives(&irradiance, &samples, known, &prims, &mut sun_lit)
+                        let track = &mut self.sun_track;
+                        sun_on_primitives(&irradiance, &samples, known, track, &prims, &mut sun_lit)
                     } else {
                         None
                     };
@@ -507,6 +508,7 @@ impl ArPipeline {
                             &light,
                             &samples,
                             known_sun,
+                            &mut self.sun_track,
                             &prims,
                             &mut cpu.sun_lit,
                         );

@@ -442,6 +442,10 @@ impl FrameProcessor for PipelineProcessor<'_> {
         };
         let t0 = Instant::now();
         tracker.reset();
+        // Every still on its own, so that a resumed take equals an uninterrupted one: the
+        // pipeline forgets what it carries between frames (the patch fill's prior, the sun's
+        // running direction).
+        pipeline.reset_tracker();
         if let Some(m) = &self.memory {
             pipeline.restore_memory(m);
         }
