@@ -522,28 +522,39 @@ impl ShadeContext<'_> {
                         va.sun_lit[k] * b0 + vb.sun_lit[k] * b1 + vc.sun_lit[k] * b2
                     })
                 };
+                // Relighting from the key pose's normal to the in-between's, for what was seen
+                // in the key pose: the live sample, and the remembered colour.
+                let relight_factor = || -> [f32; 3] {
+                    let nk = lerp3(|v| v.key_normal_world).normalize_or_zero();
+                    match &params.sun {
+                        Some(sun) => {
+                            let lit = sun_lit();
+                            sun.relight_factor(nk, lit[0], normal(), lit[1])
+                        }
+                        None => look::relight_factor(&params.fallback_irradiance, nk, normal()),
+                    }
+                };
                 let fallback = |a: &[f32; 4]| -> [f32; 3] {
                     let e = match &params.sun {
                         Some(sun) => sun.irradiance(normal(), sun_lit()[1]),
                         None => look::irradiance(&params.fallback_irradiance, normal()),
                     };
                     let lit = std::array::from_fn(|c| a[c] * e[c]);
-                    let memory: [f32; 4] = std::array::from_fn(|c| {
+                    let mut memory: [f32; 4] = std::array::from_fn(|c| {
                         va.memory[c] * b0 + vb.memory[c] * b1 + vc.memory[c] * b2
                     });
+                    if params.relight && memory[3] > 0.0 {
+                        let f = relight_factor();
+                        for c in 0..3 {
+                            memory[c] *= f[c];
+                        }
+                    }
                     crate::memory::remembered_or(memory, lit)
                 };
                 if code == code::VALID {
                     let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
                     if params.relight {
-                        let nk = lerp3(|v| v.key_normal_world).normalize_or_zero();
-                        let f = match &params.sun {
-                            Some(sun) => {
-                                let lit = sun_lit();
-                                sun.relight_factor(nk, lit[0], normal(), lit[1])
-                            }
-                            None => look::relight_factor(&params.fallback_irradiance, nk, normal()),
-                        };
+                        let f = relight_factor();
                         rgb = std::array::from_fn(|c| rgb[c] * f[c]);
                     }
                     if weight < 1.0 {

@@ -32,9 +32,20 @@ const FRAME: u32 = 20;
 /// blends in the fallback, memory included, and relit the memory does not pay yet (README,
 /// "Texture memory").
 fn run(renderer: &mut Renderer, scene: &Scene, path: RenderPath, memory: bool) -> ArFrame {
+    run_with(renderer, scene, path, memory, LiveLook::PLAIN)
+}
+
+/// [`run`] with `look`.
+fn run_with(
+    renderer: &mut Renderer,
+    scene: &Scene,
+    path: RenderPath,
+    memory: bool,
+    look: LiveLook,
+) -> ArFrame {
     let settings = ArSettings {
         fill: Fill::None,
-        look: LiveLook::PLAIN,
+        look,
         ..ArSettings::ours()
     };
     let mut p = pipeline_for(scene, renderer, settings).expect("pipeline");
@@ -146,4 +157,61 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
         assert!(fallback_gain > 0.3, "{fallback_gain} dB");
         assert!(prop_gain > 0.0, "{prop_gain} dB");
     }
+}
+
+/// Relit (ours' look, with the sun), the remembered colour is relit like a live sample, from
+/// the key pose's normal to the in-between's, on both render paths alike (stop 26): with the
+/// memory on, the two paths' outputs agree as `cpu_gpu_parity` asks, and the memory changes
+/// the fallback pixels on both (so the comparison covers the relit memory).
+#[test]
+fn relit_remembered_texturing_is_the_same_on_both_paths() {
+    let mut renderer = match Renderer::new() {
+        Ok(r) => r,
+        Err(e) => {
+            println!("skipped: no wgpu adapter ({e})");
+            return;
+        }
+    };
+    let spec = SceneSpec {
+        seed: 3,
+        width: W,
+        height: H,
+        frames: FRAME + 1,
+        ..SceneSpec::default()
+    };
+    let scene = Scene::new(spec, &mut renderer).expect("scene");
+    let look = ArSettings::ours().look;
+    assert!(look.relight && look.sun, "ours relights with the sun");
+    let frames: Vec<(ArFrame, ArFrame)> = [RenderPath::Gpu, RenderPath::Cpu]
+        .into_iter()
+        .map(|path| {
+            (
+                run_with(&mut renderer, &scene, path, false, look),
+                run_with(&mut renderer, &scene, path, true, look),
+            )
+        })
+        .collect();
+    for (off, on) in &frames {
+        let changed = on
+            .rgba8
+            .chunks_exact(4)
+            .zip(off.rgba8.chunks_exact(4))
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(changed > 100, "the memory changed only {changed} pixels");
+    }
+    let (gpu, cpu) = (&frames[0].1, &frames[1].1);
+    let px = gpu.rgba8.len() / 4;
+    let within = gpu
+        .rgba8
+        .chunks_exact(4)
+        .zip(cpu.rgba8.chunks_exact(4))
+        .filter(|(a, b)| (0..3).all(|c| a[c].abs_diff(b[c]) <= 2))
+        .count();
+    let fraction = within as f64 / px as f64;
+    println!(
+        "relit memory: {:.3} % of pixels within 2/255 between the paths",
+        100.0 * fraction
+    );
+    assert!(fraction >= 0.995, "{fraction}");
 }

@@ -354,20 +354,36 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
             e_anim = sun_irradiance(n, in.sun_lit.y);
         }
         let lit = albedo.rgb * e_anim;
-        let fallback = in.memory.rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
+        // Relit at the animated normal: E(n_anim) / E(n_key), clamped; for what was seen in
+        // the key pose (the live sample, the remembered colour).
+        let relight = live.stretch.y == 1.0;
+        var ratio = vec3<f32>(1.0);
+        if (relight) {
+            let nk = unit_or_zero(in.key_normal_world);
+            if (sun) {
+                ratio = clamp(
+                    e_anim / sun_irradiance(nk, in.sun_lit.x),
+                    vec3<f32>(SUN_RELIGHT_MIN),
+                    vec3<f32>(SUN_RELIGHT_MAX),
+                );
+            } else {
+                ratio = clamp(
+                    e_anim / irradiance(nk),
+                    vec3<f32>(RELIGHT_MIN),
+                    vec3<f32>(RELIGHT_MAX),
+                );
+            }
+        }
+        var memory_rgb = in.memory.rgb;
+        if (relight && in.memory.a > 0.0) {
+            memory_rgb *= ratio;
+        }
+        let fallback = memory_rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
         if (code == LIVE_VALID) {
             let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
             var c = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
-            if (live.stretch.y == 1.0) {
-                // Relit at the animated normal: c E(n_anim) / E(n_key), clamped.
-                let nk = unit_or_zero(in.key_normal_world);
-                if (sun) {
-                    let ratio = e_anim / sun_irradiance(nk, in.sun_lit.x);
-                    c *= clamp(ratio, vec3<f32>(SUN_RELIGHT_MIN), vec3<f32>(SUN_RELIGHT_MAX));
-                } else {
-                    let ratio = e_anim / irradiance(nk);
-                    c *= clamp(ratio, vec3<f32>(RELIGHT_MIN), vec3<f32>(RELIGHT_MAX));
-                }
+            if (relight) {
+                c *= ratio;
             }
             rgb = select(mix(fallback, c, lookup.weight), c, lookup.weight >= 1.0);
         } else {
