@@ -67,13 +67,14 @@ fn run_with(
     pa_scene::eval::process_at_true_pose(&mut p, renderer, &f).expect("process")
 }
 
-#[test]
-fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_paths() {
+/// The renderer and the golden scene (seed 3, 192x108, up to frame 20); `None`, having said
+/// why, without a wgpu adapter.
+fn renderer_and_scene() -> Option<(Renderer, Scene)> {
     let mut renderer = match Renderer::new() {
         Ok(r) => r,
         Err(e) => {
             println!("skipped: no wgpu adapter ({e})");
-            return;
+            return None;
         }
     };
     let spec = SceneSpec {
@@ -84,6 +85,14 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
         ..SceneSpec::default()
     };
     let scene = Scene::new(spec, &mut renderer).expect("scene");
+    Some((renderer, scene))
+}
+
+#[test]
+fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_paths() {
+    let Some((mut renderer, scene)) = renderer_and_scene() else {
+        return;
+    };
     // The eval's scan pass tracks the orbit's views (the board is seen all around), at the
     // eval's size (the tags are too small to decode at 192x108).
     {
@@ -165,21 +174,9 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
 /// the fallback pixels on both (so the comparison covers the relit memory).
 #[test]
 fn relit_remembered_texturing_is_the_same_on_both_paths() {
-    let mut renderer = match Renderer::new() {
-        Ok(r) => r,
-        Err(e) => {
-            println!("skipped: no wgpu adapter ({e})");
-            return;
-        }
+    let Some((mut renderer, scene)) = renderer_and_scene() else {
+        return;
     };
-    let spec = SceneSpec {
-        seed: 3,
-        width: W,
-        height: H,
-        frames: FRAME + 1,
-        ..SceneSpec::default()
-    };
-    let scene = Scene::new(spec, &mut renderer).expect("scene");
     let look = ArSettings::ours().look;
     assert!(look.relight && look.sun, "ours relights with the sun");
     let frames: Vec<(ArFrame, ArFrame)> = [RenderPath::Gpu, RenderPath::Cpu]

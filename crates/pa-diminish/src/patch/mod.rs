@@ -313,9 +313,10 @@ pub(crate) fn patch_fill_region(
             &mut scratch.next,
             params,
         );
-        // The prior on the finest level too, for the temporal blend.
+        // The prior on the finest level too, for the temporal blend (unless the finest level
+        // is searched: then `build` sampled it there already).
         let blend = params.temporal_blend;
-        if blend > 0.0 {
+        if blend > 0.0 && scratch.levels[0].prior_ok.is_empty() {
             if let Some((p, hom)) = fill.prior.as_ref().zip(prior_from_current.as_ref()) {
                 pyramid::sample_level_prior(&mut scratch.levels[0], 0, region, p, hom);
             }

@@ -19,7 +19,7 @@ use glam::{DVec2, Mat4, Vec3};
 use pa_camera::CameraModel;
 use pa_render::{LiveRegionFrame, PixelRegion};
 
-use super::texture::Bbox;
+use super::texture::{mask_rows, Bbox};
 
 /// Pixels of margin around a projected bound.
 const REGION_MARGIN_PX: f64 = 4.0;
@@ -160,47 +160,29 @@ impl RegionDepth {
             return (mask, None);
         };
         let bbox = mask_rows(
-            rows(r, self.width as usize)
-                .enumerate()
-                .map(|(k, row)| (r.y as usize + k, r.x as usize, row)),
-            |row| &self.depth[row],
+            located_rows(r, self.width as usize),
             &mut mask,
+            |row| &self.depth[row],
+            |d: &f32| d.is_finite(),
         );
         (mask, bbox)
     }
+}
+
+/// [`rows`] with each row's frame row and first column, as [`mask_rows`] takes them.
+fn located_rows(
+    region: PixelRegion,
+    w: usize,
+) -> impl Iterator<Item = (usize, usize, std::ops::Range<usize>)> {
+    rows(region, w)
+        .enumerate()
+        .map(move |(k, row)| (region.y as usize + k, region.x as usize, row))
 }
 
 /// The row ranges of `region` in a frame `w` pixels wide.
 fn rows(region: PixelRegion, w: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     let (x, rw) = (region.x as usize, region.width as usize);
     (region.y as usize..(region.y + region.height) as usize).map(move |y| y * w + x..y * w + x + rw)
-}
-
-/// Sets `mask` where the depth rows are finite and returns their bounding box.
-fn mask_rows<'a>(
-    rows: impl Iterator<Item = (usize, usize, std::ops::Range<usize>)>,
-    depth_of: impl Fn(std::ops::Range<usize>) -> &'a [f32],
-    mask: &mut [bool],
-) -> Option<Bbox> {
-    let mut b: Option<Bbox> = None;
-    for (y, x, row) in rows {
-        let (mut first, mut last) = (usize::MAX, 0);
-        for (k, (m, d)) in mask[row.clone()].iter_mut().zip(depth_of(row)).enumerate() {
-            if d.is_finite() {
-                *m = true;
-                first = first.min(k);
-                last = k;
-            }
-        }
-        if first != usize::MAX {
-            let (x0, x1) = (x + first, x + last);
-            b = Some(match b {
-                None => (x0, y, x1, y),
-                Some((bx0, by0, bx1, _)) => (bx0.min(x0), by0, bx1.max(x1), y),
-            });
-        }
-    }
-    b
 }
 
 /// The live twin of one region placed into full-frame buffers: colour (zero elsewhere), the
@@ -217,15 +199,15 @@ pub(super) fn twin_from_region(r: &LiveRegionFrame) -> (Vec<u8>, Vec<bool>, Opti
         rgba[row.start * 4..row.end * 4].copy_from_slice(&r.rgba8[k * rw * 4..(k + 1) * rw * 4]);
         codes[row.clone()].copy_from_slice(&r.live_valid[k * rw..(k + 1) * rw]);
     }
+    // The region's own depth rows, found from a frame row's span.
     let bbox = mask_rows(
-        rows(region, w)
-            .enumerate()
-            .map(|(k, row)| (region.y as usize + k, region.x as usize, row)),
+        located_rows(region, w),
+        &mut mask,
         |row| {
             let k = row.start / w - region.y as usize;
             &r.depth_m[k * rw..(k + 1) * rw]
         },
-        &mut mask,
+        |d: &f32| d.is_finite(),
     );
     (rgba, mask, bbox, codes)
 }

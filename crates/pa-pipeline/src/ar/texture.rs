@@ -67,28 +67,42 @@ pub(super) type Bbox = (usize, usize, usize, usize);
 pub(super) fn mask_of_vis(v: &pa_raster::VisBuffer) -> (Vec<bool>, Option<Bbox>) {
     let w = v.width as usize;
     let mut mask = vec![false; w * v.height as usize];
+    let b = v.dirty.and_then(|r| {
+        let (x0, x1) = (r.x0 as usize, r.x1 as usize);
+        let rows = (r.y0 as usize..=r.y1 as usize).map(|y| (y, x0, y * w + x0..y * w + x1 + 1));
+        mask_rows(rows, &mut mask, |row| &v.inv_z[row], |&iz| iz > 0.0)
+    });
+    (mask, b)
+}
+
+/// Sets `mask` where `covered` holds for the values of the given rows and returns the bounding
+/// box of what it set. A row is `(y, x, range)`: frame row `y` from column `x`, `range` its
+/// span in `mask`; `values(range)` gives the values over that span.
+pub(super) fn mask_rows<'a, T: 'a>(
+    rows: impl Iterator<Item = (usize, usize, std::ops::Range<usize>)>,
+    mask: &mut [bool],
+    values: impl Fn(std::ops::Range<usize>) -> &'a [T],
+    covered: impl Fn(&T) -> bool,
+) -> Option<Bbox> {
     let mut b: Option<Bbox> = None;
-    if let Some(r) = v.dirty {
-        for y in r.y0 as usize..=r.y1 as usize {
-            let (a, e) = (y * w + r.x0 as usize, y * w + r.x1 as usize + 1);
-            let (mut first, mut last) = (usize::MAX, 0);
-            for (k, (m, &iz)) in mask[a..e].iter_mut().zip(&v.inv_z[a..e]).enumerate() {
-                if iz > 0.0 {
-                    *m = true;
-                    first = first.min(k);
-                    last = k;
-                }
-            }
-            if first != usize::MAX {
-                let (x0, x1) = (r.x0 as usize + first, r.x0 as usize + last);
-                b = Some(match b {
-                    None => (x0, y, x1, y),
-                    Some((bx0, by0, bx1, _)) => (bx0.min(x0), by0, bx1.max(x1), y),
-                });
+    for (y, x, row) in rows {
+        let (mut first, mut last) = (usize::MAX, 0);
+        for (k, (m, v)) in mask[row.clone()].iter_mut().zip(values(row)).enumerate() {
+            if covered(v) {
+                *m = true;
+                first = first.min(k);
+                last = k;
             }
         }
+        if first != usize::MAX {
+            let (x0, x1) = (x + first, x + last);
+            b = Some(match b {
+                None => (x0, y, x1, y),
+                Some((bx0, by0, bx1, _)) => (bx0.min(x0), by0, bx1.max(x1), y),
+            });
+        }
     }
-    (mask, b)
+    b
 }
 
 /// Key-pose vertices sampled for the fallback's irradiance fit (at most about this many).
@@ -265,8 +279,8 @@ impl ArPipeline {
                     let (irradiance, samples) = irradiance;
                     let live_camera = LiveCamera::new(camera_model, camera_from_marker);
                     let look = self.settings.look;
-                    // The sun (ours): the in-between poses posed on the CPU too; its fractions keyed
-                    // by (prop, node, primitive).
+                    // The sun (ours), on both poses posed above; its fractions keyed by (prop,
+                    // node, primitive).
                     let mut sun_lit = Vec::new();
                     let mut sun_keys: Vec<(usize, usize, usize)> = Vec::new();
                     let sun = if visibility && look.relight && look.sun {
