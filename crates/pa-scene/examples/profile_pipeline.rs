@@ -1,9 +1,9 @@
 //! Runs the frame pipeline over and over on a few generated frames, for a profiler:
 //! `cargo build --release -p pa-scene --example profile_pipeline` then
-//! `perf record -g target/release/examples/profile_pipeline [cpu|gpu] [WIDTHxHEIGHT] [REPEATS] [PROPS]`.
+//! `perf record -g target/release/examples/profile_pipeline [cpu|gpu] [WIDTHxHEIGHT] [REPEATS] [PROPS] [rays|patch]`.
 //! Prints the median stage timings.
 
-use pa_pipeline::ar::{ArSettings, RenderPath};
+use pa_pipeline::ar::{ArSettings, Fill, RenderPath};
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec};
@@ -22,6 +22,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or((1280u32, 720u32));
     let repeats: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(100);
     let props: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let fill = match args.get(5).map(String::as_str) {
+        Some("patch") => Fill::Patch { plate: false },
+        _ => Fill::Rays,
+    };
     let mut renderer = Renderer::new().map_err(|e| e.to_string())?;
     let spec = SceneSpec {
         seed: 1,
@@ -37,7 +41,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<_, _>>()
         .map_err(|e| e.to_string())?;
     // One pipeline prop per copy on the set (PROP_SPOTS), as in `propsalive bench`.
-    let mut p = pipeline_for(&scene, &mut renderer, ArSettings::ours())?;
+    let settings = ArSettings {
+        fill,
+        ..ArSettings::ours()
+    };
+    let mut p = pipeline_for(&scene, &mut renderer, settings)?;
     p.set_render_path(path);
     let mut t: Vec<[f64; 6]> = Vec::new();
     for k in 0..repeats {

@@ -237,9 +237,21 @@ fn downsample(fine: &Level, coarse: &mut Level) {
     let (w, h) = (fine.w.div_ceil(2), fine.h.div_ceil(2));
     let with_prior = !fine.prior.is_empty();
     coarse.reset(w, h, with_prior);
+    // The 2x2 children of coarse pixel (x, y) inside the fine level, row by row.
     let children = |x: usize, y: usize| {
-        (2 * y..(2 * y + 2).min(fine.h))
-            .flat_map(move |cy| (2 * x..(2 * x + 2).min(fine.w)).map(move |cx| cy * fine.w + cx))
+        let (fw, i) = (fine.w, 2 * y * fine.w + 2 * x);
+        let (right, below) = (2 * x + 1 < fw, 2 * y + 1 < fine.h);
+        let mut c = [i, i + 1, i + fw, i + fw + 1];
+        let n = match (right, below) {
+            (true, true) => 4,
+            (true, false) => 2,
+            (false, true) => {
+                c[1] = i + fw;
+                2
+            }
+            (false, false) => 1,
+        };
+        ChildList { c, n, k: 0 }
     };
     // Rows in parallel.
     coarse
@@ -276,52 +288,86 @@ fn downsample(fine: &Level, coarse: &mut Level) {
         });
     if !fine.label.is_empty() {
         coarse.label.resize(w * h, 0);
-        for y in 0..h {
-            for x in 0..w {
-                let mut ls = [0u8; 4];
-                let mut n = 0;
-                for c in children(x, y) {
-                    ls[n] = fine.label[c];
-                    n += 1;
-                }
-                let ls = &ls[..n];
-                // The most frequent (ties: the first child's).
-                let mut best = ls[0];
-                let mut best_n = 0;
-                for &a in ls {
-                    let k = ls.iter().filter(|&&b| b == a).count();
-                    if k > best_n {
-                        best = a;
-                        best_n = k;
+        coarse
+            .label
+            .par_chunks_mut(w)
+            .enumerate()
+            .for_each(|(y, labels)| {
+                for (x, out) in labels.iter_mut().enumerate() {
+                    let mut ls = [0u8; 4];
+                    let mut n = 0;
+                    for c in children(x, y) {
+                        ls[n] = fine.label[c];
+                        n += 1;
                     }
+                    *out = most_frequent(&ls[..n]);
                 }
-                coarse.label[y * w + x] = best;
-            }
-        }
+            });
     }
     if with_prior {
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                if coarse.state[i] != HOLE {
-                    continue;
-                }
-                let mut psum = [0.0f32; 3];
-                let mut pn = 0.0f32;
-                for c in children(x, y) {
-                    if fine.prior_ok[c] {
-                        add(&mut psum, fine.prior[c]);
-                        pn += 1.0;
+        coarse
+            .prior
+            .par_chunks_mut(w)
+            .zip(coarse.prior_ok.par_chunks_mut(w))
+            .zip(coarse.state.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, ((prior, ok), states))| {
+                for (x, st) in states.iter().enumerate() {
+                    if *st != HOLE {
+                        continue;
+                    }
+                    let mut psum = [0.0f32; 3];
+                    let mut pn = 0.0f32;
+                    for c in children(x, y) {
+                        if fine.prior_ok[c] {
+                            add(&mut psum, fine.prior[c]);
+                            pn += 1.0;
+                        }
+                    }
+                    if pn > 0.0 {
+                        prior[x] = psum.map(|v| v / pn);
+                        ok[x] = true;
                     }
                 }
-                if pn > 0.0 {
-                    coarse.prior[i] = psum.map(|v| v / pn);
-                    coarse.prior_ok[i] = true;
-                }
-            }
-        }
+            });
     }
     coarse.index();
+}
+
+/// Up to 4 pixel indices (a coarse pixel's children), iterated in order.
+struct ChildList {
+    c: [usize; 4],
+    n: usize,
+    k: usize,
+}
+
+impl Iterator for ChildList {
+    type Item = usize;
+    #[inline]
+    fn next(&mut self) -> Option<usize> {
+        (self.k < self.n).then(|| {
+            self.k += 1;
+            self.c[self.k - 1]
+        })
+    }
+}
+
+/// The most frequent of 1 to 4 labels (ties: the first's).
+fn most_frequent(ls: &[u8]) -> u8 {
+    // Nearly always: one surface.
+    if ls.iter().all(|&b| b == ls[0]) {
+        return ls[0];
+    }
+    let mut best = ls[0];
+    let mut best_n = 0;
+    for &a in ls {
+        let k = ls.iter().filter(|&&b| b == a).count();
+        if k > best_n {
+            best = a;
+            best_n = k;
+        }
+    }
+    best
 }
 
 /// The prior's colour at current-frame pixel `(x, y)`: the previous image bilinearly sampled at

@@ -9,6 +9,7 @@ use glam::{DVec2, DVec3, Mat4};
 use pa_camera::CameraModel;
 use pa_diminish::{Mask, Rect};
 use pa_track::Board;
+use rayon::prelude::*;
 
 use super::ArPipeline;
 
@@ -48,6 +49,9 @@ pub const TAG: u8 = 2;
 pub const TAG_GROW_PX: f64 = 1.5;
 /// Known pixels of each kind (black, white) needed to measure a frame's tag levels.
 pub const MIN_LEVEL_SAMPLES: usize = 12;
+/// The tag levels are measured on every `LEVEL_STRIDE`-th pixel of every `LEVEL_STRIDE`-th
+/// row of the work region.
+pub const LEVEL_STRIDE: usize = 2;
 
 /// The board's printed surfaces on the marker plane (z = 0, marker frame, metres).
 #[derive(Debug, Clone, PartialEq)]
@@ -72,12 +76,19 @@ struct TagPrint {
     total: u32,
     /// One byte a cell, row-major: 0 black, 255 white.
     cells: Vec<u8>,
+    /// Half the pattern's diagonal and a little more (metres): no point farther from the
+    /// centre along x or y lies on the pattern.
+    reach_m: f64,
 }
 
 impl TagPrint {
     /// Whether the print is white at marker point `p` (the white ring and beyond: white).
     fn white_at(&self, p: DVec2) -> bool {
         let d = p - self.center;
+        // Beyond the pattern's circumscribed square: white (the cheap test first).
+        if d.x.abs() > self.reach_m || d.y.abs() > self.reach_m {
+            return true;
+        }
         let (c, s) = self.rot;
         // Into the tag's own axes (rotate by -rotation).
         let (u, v) = (c * d.x + s * d.y, -s * d.x + c * d.y);
@@ -112,12 +123,18 @@ impl BoardSurfaces {
                 .iter()
                 .filter_map(|t| {
                     let cells = pa_track::marker_cells(board.family, t.id).ok()?;
+                    let cell_m = t.size_m / f64::from(layout.border_cells.max(1));
                     Some(TagPrint {
                         center: t.center_m,
                         rot: (t.rotation_rad.cos(), t.rotation_rad.sin()),
-                        cell_m: t.size_m / f64::from(layout.border_cells.max(1)),
+                        cell_m,
                         total: cells.width,
                         cells: cells.data,
+                        reach_m: 0.5
+                            * std::f64::consts::SQRT_2
+                            * cell_m
+                            * f64::from(cells.width)
+                            * 1.001,
                     })
                 })
                 .collect(),
@@ -136,7 +153,8 @@ impl BoardSurfaces {
     /// pattern (back-projected onto the marker plane), mapped to this frame's black and white
     /// as measured on the known pixels of the tags in `rect` (mean colour of the known tag
     /// pixels the pattern says are black, and of those it says are white, each at least
-    /// [`MIN_LEVEL_SAMPLES`]). Returns the pixels painted (0 when the levels are unknown).
+    /// [`MIN_LEVEL_SAMPLES`], on a grid of step [`LEVEL_STRIDE`]). Returns the pixels painted
+    /// (0 when the levels are unknown).
     pub fn paint_tags(
         &self,
         camera: &CameraModel,
@@ -146,7 +164,16 @@ impl BoardSurfaces {
         image: &mut [u8],
         fill: &mut Mask,
     ) -> usize {
-        if self.prints.is_empty() {
+        let w = fill.width() as usize;
+        let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
+        let rows = rect.y as usize..(rect.y + rect.height) as usize;
+        let lab = labels.as_slice();
+        // Nothing to paint: no need to measure the levels.
+        let to_paint = |i: usize, f: u8| lab[i] == TAG && f == Mask::SET;
+        let any = rows
+            .clone()
+            .any(|y| (y * w + x0..y * w + x1).any(|i| to_paint(i, fill.as_slice()[i])));
+        if self.prints.is_empty() || !any {
             return 0;
         }
         let marker_from_camera = camera_from_marker.as_dmat4().inverse();
@@ -174,53 +201,75 @@ impl BoardSurfaces {
             }
             Some(n as f32 / 4.0)
         };
-        let w = fill.width() as usize;
-        let lab = labels.as_slice();
-        // Levels from the known tag pixels (pure black or pure white samples only).
-        let (mut black, mut white) = (([0.0f64; 3], 0usize), ([0.0f64; 3], 0usize));
-        for y in rect.y as usize..(rect.y + rect.height) as usize {
-            for x in rect.x as usize..(rect.x + rect.width) as usize {
-                let i = y * w + x;
-                if lab[i] != TAG || fill.as_slice()[i] != 0 {
-                    continue;
+        // Levels from the known tag pixels (pure black or pure white samples only) on every
+        // other pixel of every other row (a mean over thousands of pixels either way, at a
+        // quarter of the back-projections), rows in parallel. The sums are of bytes: exact in
+        // any order.
+        type Levels = ([f64; 3], usize);
+        let add = |a: Levels, b: Levels| {
+            (
+                [a.0[0] + b.0[0], a.0[1] + b.0[1], a.0[2] + b.0[2]],
+                a.1 + b.1,
+            )
+        };
+        let known = fill.as_slice();
+        let img: &[u8] = image;
+        let (black, white) = rows
+            .clone()
+            .into_par_iter()
+            .step_by(LEVEL_STRIDE)
+            .map(|y| {
+                let (mut black, mut white): (Levels, Levels) = Default::default();
+                for i in (y * w + x0..y * w + x1).step_by(LEVEL_STRIDE) {
+                    if lab[i] != TAG || known[i] != 0 {
+                        continue;
+                    }
+                    let Some(k) = whiteness(i - y * w, y) else {
+                        continue;
+                    };
+                    let acc = if k == 0.0 {
+                        &mut black
+                    } else if k == 1.0 {
+                        &mut white
+                    } else {
+                        continue;
+                    };
+                    for c in 0..3 {
+                        acc.0[c] += f64::from(img[i * 4 + c]);
+                    }
+                    acc.1 += 1;
                 }
-                let Some(k) = whiteness(x, y) else { continue };
-                let acc = if k == 0.0 {
-                    &mut black
-                } else if k == 1.0 {
-                    &mut white
-                } else {
-                    continue;
-                };
-                for c in 0..3 {
-                    acc.0[c] += f64::from(image[i * 4 + c]);
-                }
-                acc.1 += 1;
-            }
-        }
+                (black, white)
+            })
+            .reduce(Default::default, |a, b| (add(a.0, b.0), add(a.1, b.1)));
         if black.1 < MIN_LEVEL_SAMPLES || white.1 < MIN_LEVEL_SAMPLES {
             return 0;
         }
         let lo = black.0.map(|v| v / black.1 as f64);
         let hi = white.0.map(|v| v / white.1 as f64);
-        let mut painted = 0;
-        let data = fill.as_mut_slice();
-        for y in rect.y as usize..(rect.y + rect.height) as usize {
-            for x in rect.x as usize..(rect.x + rect.width) as usize {
-                let i = y * w + x;
-                if lab[i] != TAG || data[i] != Mask::SET {
-                    continue;
+        let first = rect.y as usize;
+        image[first * w * 4..rows.end * w * 4]
+            .par_chunks_mut(w * 4)
+            .zip(fill.as_mut_slice()[first * w..rows.end * w].par_chunks_mut(w))
+            .enumerate()
+            .map(|(r, (image_row, fill_row))| {
+                let y = first + r;
+                let mut painted = 0;
+                for x in x0..x1 {
+                    if !to_paint(y * w + x, fill_row[x]) {
+                        continue;
+                    }
+                    let Some(k) = whiteness(x, y) else { continue };
+                    for c in 0..3 {
+                        let v = lo[c] + f64::from(k) * (hi[c] - lo[c]);
+                        image_row[x * 4 + c] = v.round().clamp(0.0, 255.0) as u8;
+                    }
+                    fill_row[x] = 0;
+                    painted += 1;
                 }
-                let Some(k) = whiteness(x, y) else { continue };
-                for c in 0..3 {
-                    let v = lo[c] + f64::from(k) * (hi[c] - lo[c]);
-                    image[i * 4 + c] = v.round().clamp(0.0, 255.0) as u8;
-                }
-                data[i] = 0;
-                painted += 1;
-            }
-        }
-        painted
+                painted
+            })
+            .sum()
     }
 
     /// Writes the label of every pixel of `rect` into `out` (pixels outside `rect` are not
@@ -254,24 +303,33 @@ impl BoardSurfaces {
     }
 }
 
-/// Sets to `label` the pixels of `rect` whose centre lies inside the convex quad `q` grown
-/// by `grow` pixels (its edges moved outwards).
-fn paint_quad(data: &mut [u8], w: usize, rect: Rect, q: &[DVec2; 4], grow: f64, label: u8) {
+/// The edges of quad `q` as (a point, the unit normal pointing inside), degenerate edges left
+/// out; `None` for a quad of no area.
+fn inner_edges(q: &[DVec2; 4]) -> Option<Vec<(DVec2, DVec2)>> {
     // Orientation: the signed area's sign makes every edge's inside positive.
     let area: f64 = (0..4).map(|i| q[i].perp_dot(q[(i + 1) % 4])).sum();
     if area.abs() < 1e-9 {
-        return;
+        return None;
     }
     let s = area.signum();
-    let edges: Vec<(DVec2, DVec2)> = (0..4)
-        .filter_map(|i| {
-            let (a, b) = (q[i], q[(i + 1) % 4]);
-            let d = b - a;
-            let len = d.length();
-            // Unit normal pointing inside; the edge line through `a`.
-            (len > 1e-12).then(|| (a, s * d.perp() / len))
-        })
-        .collect();
+    Some(
+        (0..4)
+            .filter_map(|i| {
+                let (a, b) = (q[i], q[(i + 1) % 4]);
+                let d = b - a;
+                let len = d.length();
+                (len > 1e-12).then(|| (a, s * d.perp() / len))
+            })
+            .collect(),
+    )
+}
+
+/// Sets to `label` the pixels of `rect` whose centre lies inside the convex quad `q` grown
+/// by `grow` pixels (its edges moved outwards).
+fn paint_quad(data: &mut [u8], w: usize, rect: Rect, q: &[DVec2; 4], grow: f64, label: u8) {
+    let Some(edges) = inner_edges(q) else {
+        return;
+    };
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for p in q {
         x0 = x0.min(p.x);
@@ -285,12 +343,41 @@ fn paint_quad(data: &mut [u8], w: usize, rect: Rect, q: &[DVec2; 4], grow: f64, 
     let hi_y = (y1 + grow)
         .ceil()
         .min(f64::from(rect.y + rect.height) - 1.0) as i64;
+    // The pixels inside every edge's half-plane (an intersection of half-planes is convex)
+    // form one run in each row. Find the run's ends from the
+    // edge lines, then settle them with the exact test (rounding may move an end by a pixel).
+    let inside = |x: i64, y: i64| {
+        let c = DVec2::new(x as f64, y as f64);
+        edges.iter().all(|(a, n)| (c - *a).dot(*n) >= -grow)
+    };
     for y in lo_y..=hi_y {
-        for x in lo_x..=hi_x {
-            let c = DVec2::new(x as f64, y as f64);
-            if edges.iter().all(|(a, n)| (c - *a).dot(*n) >= -grow) {
-                data[y as usize * w + x as usize] = label;
+        let (mut l, mut r) = (lo_x as f64, hi_x as f64);
+        for (a, n) in &edges {
+            // n.x (x - a.x) + n.y (y - a.y) >= -grow
+            let rhs = -grow - n.y * (y as f64 - a.y);
+            if n.x > 1e-12 {
+                l = l.max(a.x + rhs / n.x);
+            } else if n.x < -1e-12 {
+                r = r.min(a.x + rhs / n.x);
+            } else if rhs > 1e-6 {
+                // Parallel to the row and this row is outside it.
+                r = l - 1.0;
             }
+        }
+        if l.is_nan() || r.is_nan() || l > r + 2.0 {
+            continue;
+        }
+        let mut x0 = ((l.floor() as i64) - 1).max(lo_x);
+        let mut x1 = ((r.ceil() as i64) + 1).min(hi_x);
+        while x0 <= x1 && !inside(x0, y) {
+            x0 += 1;
+        }
+        while x1 >= x0 && !inside(x1, y) {
+            x1 -= 1;
+        }
+        if x0 <= x1 {
+            let row = y as usize * w;
+            data[row + x0 as usize..=row + x1 as usize].fill(label);
         }
     }
 }
@@ -350,6 +437,84 @@ mod tests {
         assert_eq!(at(120, 87), SHEET);
         assert_eq!(at(120, 110), TAG);
         assert_eq!(at(120, 112), SHEET);
+    }
+
+    /// The scanline `paint_quad` labels exactly the pixels the per-pixel half-plane test
+    /// does over the quad's grown box (the definition it replaced), on quads of every
+    /// orientation and grow, convex or not, clipped by the rect, with degenerate edges.
+    #[test]
+    fn paint_quad_equals_the_per_pixel_test() {
+        let brute = |data: &mut [u8], w: usize, rect: Rect, q: &[DVec2; 4], grow: f64| {
+            let Some(edges) = inner_edges(q) else {
+                return;
+            };
+            // The quad's box grown by `grow`, within the rect.
+            let lo = |f: fn(&DVec2) -> f64, r0: u32| {
+                let m = q.iter().map(f).fold(f64::MAX, f64::min);
+                (m - grow).floor().max(f64::from(r0)) as i64
+            };
+            let hi = |f: fn(&DVec2) -> f64, r1: u32| {
+                let m = q.iter().map(f).fold(f64::MIN, f64::max);
+                (m + grow).ceil().min(f64::from(r1) - 1.0) as i64
+            };
+            let (x0, x1) = (lo(|p| p.x, rect.x), hi(|p| p.x, rect.x + rect.width));
+            let (y0, y1) = (lo(|p| p.y, rect.y), hi(|p| p.y, rect.y + rect.height));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let c = DVec2::new(x as f64, y as f64);
+                    if edges.iter().all(|(a, n)| (c - *a).dot(*n) >= -grow) {
+                        data[y as usize * w + x as usize] = 7;
+                    }
+                }
+            }
+        };
+        let mut seed = 12345u64;
+        let mut rnd = |lo: f64, hi: f64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            lo + (hi - lo) * ((seed >> 11) as f64 / (1u64 << 53) as f64)
+        };
+        let (w, h) = (64usize, 48usize);
+        let rect = Rect::from_inclusive(3, 2, 59, 44);
+        let mut quads: Vec<[DVec2; 4]> = (0..400)
+            .map(|_| {
+                let c = DVec2::new(rnd(-10.0, 74.0), rnd(-10.0, 58.0));
+                let mut q = [DVec2::ZERO; 4];
+                for (k, p) in q.iter_mut().enumerate() {
+                    let a = rnd(0.0, 1.5) + k as f64 * std::f64::consts::FRAC_PI_2;
+                    *p = c + rnd(0.5, 30.0) * DVec2::new(a.cos(), a.sin());
+                }
+                q
+            })
+            .collect();
+        // Axis-aligned edges on pixel centres, a repeated corner, and a line.
+        quads.push([
+            DVec2::new(10.0, 10.0),
+            DVec2::new(30.0, 10.0),
+            DVec2::new(30.0, 20.0),
+            DVec2::new(10.0, 20.0),
+        ]);
+        quads.push([
+            DVec2::new(10.0, 10.0),
+            DVec2::new(10.0, 10.0),
+            DVec2::new(30.0, 25.0),
+            DVec2::new(5.0, 30.0),
+        ]);
+        quads.push([
+            DVec2::new(1.0, 1.0),
+            DVec2::new(5.0, 5.0),
+            DVec2::new(9.0, 9.0),
+            DVec2::new(3.0, 3.0),
+        ]);
+        for (i, q) in quads.iter().enumerate() {
+            for grow in [0.0, 1.5] {
+                let (mut a, mut b) = (vec![0u8; w * h], vec![0u8; w * h]);
+                paint_quad(&mut a, w, rect, q, grow, 7);
+                brute(&mut b, w, rect, q, grow);
+                assert_eq!(a, b, "quad {i} {q:?}, grow {grow}");
+            }
+        }
     }
 
     /// A tag half hidden by the fill mask is redrawn from its print, in this frame's levels:
