@@ -30,6 +30,7 @@
 use crate::error::DiminishError;
 use crate::plate::{sample, GainSpace, Homography, Space};
 use crate::types::{ImageRgba8, Mask, Rect};
+use rayon::prelude::*;
 
 /// Settings of the plate's alignment ([`crate::CleanPlate::align`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,16 +103,24 @@ struct LumaImage<'a> {
 }
 
 impl LumaImage<'_> {
-    /// Fills `out` with the luma of `frame` over `rect`.
+    /// Fills `out` with the luma of `frame` over `rect` (rows in parallel).
     fn build(frame: &ImageRgba8, rect: Rect, out: &mut Vec<f32>) {
         let stride = frame.width() as usize * 4;
         let data = frame.as_slice();
+        let w = rect.width as usize;
         out.clear();
-        for y in rect.y..rect.bottom() {
-            let row = &data[y as usize * stride + rect.x as usize * 4
-                ..y as usize * stride + rect.right() as usize * 4];
-            out.extend(row.chunks_exact(4).map(luma));
+        out.resize(w * rect.height as usize, 0.0);
+        if w == 0 {
+            return;
         }
+        out.par_chunks_mut(w).enumerate().for_each(|(r, dst)| {
+            let y = rect.y as usize + r;
+            let row =
+                &data[y * stride + rect.x as usize * 4..y * stride + rect.right() as usize * 4];
+            for (d, px) in dst.iter_mut().zip(row.chunks_exact(4)) {
+                *d = luma(px);
+            }
+        });
     }
 
     /// Luma and its gradient (central differences, interpolated like the luma) at frame

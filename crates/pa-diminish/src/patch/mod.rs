@@ -64,6 +64,7 @@ use crate::ray_fill::{FILL, PASS};
 use crate::types::{ImageRgba8, Mask, Rect};
 
 use pyramid::{Level, HIDDEN, HOLE, KNOWN};
+use rayon::prelude::*;
 
 /// Tuning of the patch fill. [`PatchParams::default`] is what the pipeline uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -230,6 +231,8 @@ pub(crate) struct PatchScratch {
     nnf: Vec<Vec<u32>>,
     votes: Vec<[f32; 3]>,
     next: Vec<u32>,
+    /// The finest level's final colour of each hole.
+    out: Vec<[u8; 3]>,
 }
 
 /// Fills the pixels of `frame` inside `bbox` whose entry in `to_fill` (local to `bbox`,
@@ -313,39 +316,53 @@ pub(crate) fn patch_fill_region(
             &mut scratch.next,
             params,
         );
-        // The prior on the finest level too, for the temporal blend (unless the finest level
-        // is searched: then `build` sampled it there already).
+        // The finest level's colours, blended with the prior where it has one (sampled here,
+        // hole by hole, unless the finest level is searched: then `build` sampled it), in
+        // parallel; then written back.
         let blend = params.temporal_blend;
-        if blend > 0.0 && scratch.levels[0].prior_ok.is_empty() {
-            if let Some((p, hom)) = fill.prior.as_ref().zip(prior_from_current.as_ref()) {
-                pyramid::sample_level_prior(&mut scratch.levels[0], 0, region, p, hom);
-            }
-        }
-        // Write the finest level's fill back.
         let lv = &scratch.levels[0];
+        let prior = fill.prior.as_ref().zip(prior_from_current.as_ref());
+        let prior_at = |p: usize, x: usize, y: usize| -> Option<[f32; 3]> {
+            if !lv.prior_ok.is_empty() {
+                return lv.prior_ok[p].then(|| lv.prior[p]);
+            }
+            let (pr, hom) = prior?;
+            pyramid::sample_prior(pr, hom, x as f64, y as f64)
+        };
+        let (rx, ry) = (region.x as usize, region.y as usize);
+        scratch.out.clear();
+        scratch.out.resize(lv.holes.len(), [0; 3]);
+        scratch
+            .out
+            .par_chunks_mut(search::CHUNK)
+            .zip(lv.holes.par_chunks(search::CHUNK))
+            .for_each(|(out, holes)| {
+                for (o, &p) in out.iter_mut().zip(holes) {
+                    let p = p as usize;
+                    let mut c = lv.color[p];
+                    if blend > 0.0 {
+                        if let Some(prior) = prior_at(p, rx + p % lv.w, ry + p / lv.w) {
+                            for ch in 0..3 {
+                                c[ch] += blend * (prior[ch] - c[ch]);
+                            }
+                        }
+                    }
+                    *o = c.map(|v| (v + 0.5).clamp(0.0, 255.0) as u8);
+                }
+            });
         let stride = fw as usize * 4;
         let data = frame.as_mut_slice();
         let bw = bbox.width as usize;
         let mut filled = 0usize;
-        for &p in &lv.holes {
+        for (&p, c) in lv.holes.iter().zip(&scratch.out) {
             let p = p as usize;
-            let (lx, ly) = (p % lv.w, p / lv.w);
-            let (x, y) = (region.x as usize + lx, region.y as usize + ly);
+            let (x, y) = (rx + p % lv.w, ry + p / lv.w);
             let li = (y - bbox.y as usize) * bw + (x - bbox.x as usize);
             if to_fill[li] != FILL {
                 continue;
             }
-            let mut c = lv.color[p];
-            if blend > 0.0 && lv.prior_ok.get(p) == Some(&true) {
-                let prior = lv.prior[p];
-                for ch in 0..3 {
-                    c[ch] += blend * (prior[ch] - c[ch]);
-                }
-            }
             let i = y * stride + x * 4;
-            for ch in 0..3 {
-                data[i + ch] = (c[ch] + 0.5).clamp(0.0, 255.0) as u8;
-            }
+            data[i..i + 3].copy_from_slice(c);
             to_fill[li] = 0;
             filled += 1;
         }

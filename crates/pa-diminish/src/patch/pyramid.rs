@@ -45,12 +45,20 @@ pub(super) struct Level {
 }
 
 impl Level {
+    /// Sizes the level to `w` x `h`: every pixel known and black, no holes, no labels; a prior
+    /// of nothing when `with_prior`.
     fn reset(&mut self, w: usize, h: usize, with_prior: bool) {
+        self.color.clear();
+        self.state.clear();
+        self.resize_for_overwrite(w, h, with_prior);
+    }
+
+    /// As [`Level::reset`], but the colours and states of the pixels the level already had
+    /// are left as they were: for a caller that writes them all.
+    fn resize_for_overwrite(&mut self, w: usize, h: usize, with_prior: bool) {
         self.w = w;
         self.h = h;
-        self.color.clear();
         self.color.resize(w * h, [0.0; 3]);
-        self.state.clear();
         self.state.resize(w * h, KNOWN);
         self.prior.clear();
         self.prior_ok.clear();
@@ -129,7 +137,8 @@ pub(super) fn build(
         levels.push(Level::default());
     }
     let l0 = &mut levels[0];
-    l0.reset(w, h, false);
+    // Every state and colour is written below.
+    l0.resize_for_overwrite(w, h, false);
     let stride = frame.width() as usize * 4;
     let data = frame.as_slice();
     let (x0, y0) = (region.x as usize, region.y as usize);
@@ -147,9 +156,11 @@ pub(super) fn build(
                 .enumerate()
             {
                 *st = state(lx, ly);
-                if *st == KNOWN {
-                    *c = [f32::from(px[0]), f32::from(px[1]), f32::from(px[2])];
-                }
+                *c = if *st == KNOWN {
+                    [f32::from(px[0]), f32::from(px[1]), f32::from(px[2])]
+                } else {
+                    [0.0; 3]
+                };
             }
         });
     l0.index();
@@ -372,7 +383,7 @@ fn most_frequent(ls: &[u8]) -> u8 {
 
 /// The prior's colour at current-frame pixel `(x, y)`: the previous image bilinearly sampled at
 /// the warped position, when all four samples lie inside it and none was hidden there.
-fn sample_prior(
+pub(super) fn sample_prior(
     p: &PatchPrior<'_>,
     prior_from_current: &Homography,
     x: f64,

@@ -366,7 +366,7 @@ const PARALLEL_MIN_HOLES: usize = 8192;
 
 /// Holes a parallel sweep hands to one task (each task has its own generator, seeded by its
 /// chunk's index, so the result does not depend on the number of threads).
-const CHUNK: usize = 2048;
+pub(super) const CHUNK: usize = 2048;
 
 /// One PatchMatch sweep with every hole improved from the field and colours as they were
 /// before the sweep (Jacobi order: propagation from all four neighbours), in parallel over
