@@ -21,6 +21,7 @@
 
 use crate::error::DiminishError;
 use crate::types::{ImageRgba8, Rect};
+use rayon::prelude::*;
 
 /// How many ray directions [`crate::FillMethod::Rays`] uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -116,9 +117,12 @@ pub(crate) fn ray_fill_region(
         scratch.recip = (0..max_k).map(|k| 1.0 / (k.max(1) as f32)).collect();
     }
     while remaining > 0 {
+        // Zeroed (rows in parallel) for this round's sums.
         for lane in &mut scratch.lanes {
-            lane.acc.clear();
             lane.acc.resize(rw * rh, [0.0; 4]);
+            lane.acc
+                .par_chunks_mut(rw.max(1))
+                .for_each(|row| row.fill([0.0; 4]));
         }
         scratch.spans.clear();
         scratch.spans.extend(to_fill.chunks_exact(rw).map(|row| {
@@ -145,26 +149,31 @@ pub(crate) fn ray_fill_region(
             run(lane_a, first_half);
             run(lane_b, second_half);
         }
+        // The sums to colours, rows in parallel.
         let stride = fw as usize * 4;
-        let data = frame.as_mut_slice();
-        let mut this_round = 0usize;
-        for ly in 0..rh {
-            let row = (region.y as usize + ly) * stride + region.x as usize * 4;
-            for lx in 0..rw {
-                let li = ly * rw + lx;
-                let (p, q) = (scratch.lanes[0].acc[li], scratch.lanes[1].acc[li]);
-                let a = [p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]];
-                if to_fill[li] == FILL && a[3] > 0.0 {
-                    let inv = 1.0 / a[3];
-                    let p = row + lx * 4;
-                    for ch in 0..3 {
-                        data[p + ch] = (a[ch] * inv + 0.5).clamp(0.0, 255.0) as u8;
+        let (rx, ry) = (region.x as usize, region.y as usize);
+        let [lane_a, lane_b] = &scratch.lanes;
+        let this_round: usize = frame.as_mut_slice()[ry * stride..(ry + rh) * stride]
+            .par_chunks_mut(stride)
+            .zip(to_fill.par_chunks_mut(rw))
+            .zip(lane_a.acc.par_chunks(rw).zip(lane_b.acc.par_chunks(rw)))
+            .map(|((row, fill_row), (acc_a, acc_b))| {
+                let mut n = 0usize;
+                for (lx, ((f, p), q)) in fill_row.iter_mut().zip(acc_a).zip(acc_b).enumerate() {
+                    let a = [p[0] + q[0], p[1] + q[1], p[2] + q[2], p[3] + q[3]];
+                    if *f == FILL && a[3] > 0.0 {
+                        let inv = 1.0 / a[3];
+                        let px = (rx + lx) * 4;
+                        for ch in 0..3 {
+                            row[px + ch] = (a[ch] * inv + 0.5).clamp(0.0, 255.0) as u8;
+                        }
+                        *f = 0;
+                        n += 1;
                     }
-                    to_fill[li] = 0;
-                    this_round += 1;
                 }
-            }
-        }
+                n
+            })
+            .sum();
         if this_round == 0 {
             // Pixels no ray reaches across the hidden ones (they block the image's border
             // on every side): fill the hidden pixels too, so that they can pass colour on.

@@ -224,57 +224,62 @@ impl ArPipeline {
 const COMPOSITE_REACH_PX: usize = 4;
 
 /// Marks as [`Mask::HIDDEN`] the set pixels of `fill` whose square neighbourhood of radius
-/// `r` lies inside the twin (pixels beyond the image count as outside). Work O(bbox).
+/// `r` lies inside the twin (pixels beyond the image count as outside). Work O(bbox): a
+/// sliding window along the rows, then down the columns, both in parallel (rows, then bands
+/// of rows).
 pub(super) fn hide_twin_interior(fill: &mut Mask, twin: &[bool], bbox: Bbox, r: usize) {
+    use rayon::prelude::*;
     let (x0, y0, x1, y1) = bbox;
     let w = fill.width() as usize;
     let bw = x1 - x0 + 1;
     let bh = y1 - y0 + 1;
-    // Horizontal pass: run length of twin pixels to the left and right of each pixel.
+    let win = 2 * r + 1;
+    // The twin lies inside its box: a window wider than the box is never all twin.
+    if bw < win || bh < win {
+        return;
+    }
+    // Horizontal: twin from lx - r to lx + r (the box's edges are outside the twin).
     let mut h_ok = vec![false; bw * bh];
-    let mut left = vec![0usize; bw];
-    for ly in 0..bh {
+    h_ok.par_chunks_mut(bw).enumerate().for_each(|(ly, out)| {
         let row = &twin[(y0 + ly) * w + x0..(y0 + ly) * w + x1 + 1];
-        let mut run = 0usize;
-        for (lx, &m) in row.iter().enumerate() {
-            run = if m { run + 1 } else { 0 };
-            left[lx] = run;
+        let mut count = row[..win - 1].iter().filter(|&&t| t).count();
+        for lx in r..bw - r {
+            count += usize::from(row[lx + r]);
+            out[lx] = count == win;
+            count -= usize::from(row[lx - r]);
         }
-        run = 0;
-        for lx in (0..bw).rev() {
-            run = if row[lx] { run + 1 } else { 0 };
-            // Twin from lx - r to lx + r (the box's edges are outside the twin).
-            h_ok[ly * bw + lx] = left[lx] > r && run > r;
-        }
-    }
-    // Vertical pass over the horizontal result.
-    let data = fill.as_mut_slice();
-    let mut up = vec![0usize; bw];
-    let mut down = vec![0usize; bw * bh];
-    for ly in (0..bh).rev() {
-        for lx in 0..bw {
-            down[ly * bw + lx] = if h_ok[ly * bw + lx] {
-                1 + if ly + 1 < bh {
-                    down[(ly + 1) * bw + lx]
-                } else {
-                    0
-                }
-            } else {
-                0
-            };
-        }
-    }
-    for ly in 0..bh {
-        for lx in 0..bw {
-            up[lx] = if h_ok[ly * bw + lx] { up[lx] + 1 } else { 0 };
-            if up[lx] > r && down[ly * bw + lx] > r {
-                let i = (y0 + ly) * w + x0 + lx;
-                if data[i] != 0 {
-                    data[i] = Mask::HIDDEN;
+    });
+    // Vertical, over the horizontal result: rows r..bh - r of the box, in bands.
+    const BAND: usize = 32;
+    let first = (y0 + r) * w;
+    let rows = bh - 2 * r;
+    let h_ok = &h_ok;
+    fill.as_mut_slice()[first..first + rows * w]
+        .par_chunks_mut(BAND * w)
+        .enumerate()
+        .for_each(|(band, data)| {
+            let ly0 = r + band * BAND;
+            // Rows ly0 - r .. ly0 + r - 1 counted; each row adds its bottom and drops its top.
+            let mut count = vec![0usize; bw];
+            for y in ly0 - r..ly0 + r {
+                for (c, &ok) in count.iter_mut().zip(&h_ok[y * bw..(y + 1) * bw]) {
+                    *c += usize::from(ok);
                 }
             }
-        }
-    }
+            for (k, row) in data.chunks_mut(w).enumerate() {
+                let ly = ly0 + k;
+                let add = &h_ok[(ly + r) * bw..(ly + r + 1) * bw];
+                let drop = &h_ok[(ly - r) * bw..(ly - r + 1) * bw];
+                let cells = &mut row[x0..x0 + bw];
+                for (((c, &a), &d), m) in count.iter_mut().zip(add).zip(drop).zip(cells) {
+                    *c += usize::from(a);
+                    if *c == win && *m != 0 {
+                        *m = Mask::HIDDEN;
+                    }
+                    *c -= usize::from(d);
+                }
+            }
+        });
 }
 
 /// Clears a rectangle of a mask.

@@ -171,6 +171,43 @@ fn clear_rect_clears_only_the_rectangle() {
     }
 }
 
+/// Runs `hide_twin_interior` on a fill mask of `fill_data` and checks it against the
+/// definition pixel by pixel: a set fill pixel is hidden exactly when every pixel within
+/// Chebyshev distance `r` lies in the image and in the twin. Returns the pixels hidden.
+fn hides_exactly_the_interior(
+    twin: &[bool],
+    (w, h): (usize, usize),
+    bbox: (usize, usize, usize, usize),
+    fill_data: &[u8],
+    r: usize,
+) -> usize {
+    let mut fill = Mask::new(w as u32, h as u32, fill_data.to_vec()).expect("mask");
+    hide_twin_interior(&mut fill, twin, bbox, r);
+    let ri = r as i64;
+    let mut hidden = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let all_twin = (-ri..=ri).all(|dy| {
+                (-ri..=ri).all(|dx| {
+                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                    (0..w as i64).contains(&xx)
+                        && (0..h as i64).contains(&yy)
+                        && twin[yy as usize * w + xx as usize]
+                })
+            });
+            let i = y * w + x;
+            let want = if fill_data[i] != 0 && all_twin {
+                Mask::HIDDEN
+            } else {
+                fill_data[i]
+            };
+            assert_eq!(fill.as_slice()[i], want, "r {r}: ({x}, {y})");
+            hidden += usize::from(want == Mask::HIDDEN);
+        }
+    }
+    hidden
+}
+
 #[test]
 fn twin_interior_is_hidden_where_the_whole_window_is_twin() {
     // An irregular twin (a disc with a notch and a hole) against the definition, pixel by
@@ -190,31 +227,33 @@ fn twin_interior_is_hidden_where_the_whole_window_is_twin() {
         let fill_data: Vec<u8> = (0..w * h)
             .map(|i| if i % w < 16 { Mask::SET } else { 0 })
             .collect();
-        let mut fill = Mask::new(w as u32, h as u32, fill_data.clone()).expect("mask");
-        hide_twin_interior(&mut fill, &twin, bbox, r);
-        let mut hidden = 0;
-        for y in 0..h {
-            for x in 0..w {
-                let ri = r as i64;
-                let all_twin = (-ri..=ri).all(|dy| {
-                    (-ri..=ri).all(|dx| {
-                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                        (0..w as i64).contains(&xx)
-                            && (0..h as i64).contains(&yy)
-                            && twin[yy as usize * w + xx as usize]
-                    })
-                });
-                let i = y * w + x;
-                let want = if fill_data[i] != 0 && all_twin {
-                    Mask::HIDDEN
-                } else {
-                    fill_data[i]
-                };
-                assert_eq!(fill.as_slice()[i], want, "r {r}: ({x}, {y})");
-                hidden += usize::from(want == Mask::HIDDEN);
-            }
-        }
+        let hidden = hides_exactly_the_interior(&twin, (w, h), bbox, &fill_data, r);
         assert!(r == 4 || hidden > 0, "r {r}: the test must hide something");
+    }
+}
+
+/// The same definition on a twin taller than the vertical pass's bands of 32 rows (a wavy
+/// blob with holes, touching the image's edge), for several radii.
+#[test]
+fn twin_interior_hiding_matches_the_definition_across_bands() {
+    let (w, h) = (150usize, 110usize);
+    let twin: Vec<bool> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let r = 45.0 + 8.0 * (0.3 * y).sin() + 5.0 * (0.17 * x).cos();
+            let inside = (x - 70.0).powi(2) / 1.6 + (y - 50.0).powi(2) <= r * r;
+            let hole = (x - 60.0).powi(2) + (y - 40.0).powi(2) < 30.0 || (i * 7919) % 1499 == 0;
+            inside && !hole
+        })
+        .collect();
+    let bbox = crate::composite::bounding_box(&twin, w, h).expect("twin");
+    assert!(bbox.3 - bbox.1 > 64, "at least three bands");
+    for r in [1usize, 3, 4, 6] {
+        let fill_data: Vec<u8> = (0..w * h)
+            .map(|i| if (i / w) % 9 == 4 { 0 } else { Mask::SET })
+            .collect();
+        let hidden = hides_exactly_the_interior(&twin, (w, h), bbox, &fill_data, r);
+        assert!(hidden > 300, "r {r}: the test must hide much ({hidden})");
     }
 }
 
