@@ -217,6 +217,32 @@ struct TwoFrames {
     shift: Homography,
 }
 
+impl TwoFrames {
+    /// Frame 1's result as the prior of frame 2.
+    fn prior(&self) -> PatchPrior<'_> {
+        PatchPrior {
+            image: &self.f1,
+            mask: &self.m1,
+            current_from_previous: self.shift,
+        }
+    }
+
+    /// Frame 2 (the prop painted into its hole) filled with `params` and `prior`.
+    fn fill2(&self, params: PatchParams, prior: Option<PatchPrior<'_>>) -> ImageRgba8 {
+        let mut f2 = self.t2.clone();
+        paint(&mut f2, &self.m2, PROP);
+        let method = FillMethod::Patch(PatchFill {
+            params,
+            prior,
+            ..PatchFill::new()
+        });
+        Diminisher::new()
+            .fill(&mut f2, &self.m2, &method)
+            .expect("fill 2");
+        f2
+    }
+}
+
 fn two_frames() -> TwoFrames {
     let (w, h) = (160u32, 120u32);
     let (tx, ty) = (3.0, -2.0);
@@ -252,41 +278,20 @@ fn two_frames() -> TwoFrames {
 /// the next than when each frame is filled alone.
 #[test]
 fn the_prior_keeps_a_static_scene_steady() {
-    let TwoFrames {
-        t2,
-        m2,
-        f1,
-        m1,
-        moved1,
-        shift,
-    } = two_frames();
+    let frames = two_frames();
     let fill2 = |prior: Option<PatchPrior<'_>>, seed: u64| {
-        let mut f2 = t2.clone();
-        paint(&mut f2, &m2, PROP);
-        let method = FillMethod::Patch(PatchFill {
-            params: PatchParams {
-                seed,
-                temporal_blend: 0.0,
-                ..PatchParams::default()
-            },
-            prior,
-            plate: None,
-            surfaces: None,
-            align_prior: None,
-        });
-        Diminisher::new()
-            .fill(&mut f2, &m2, &method)
-            .expect("fill 2");
-        f2
+        let params = PatchParams {
+            seed,
+            temporal_blend: 0.0,
+            ..PatchParams::default()
+        };
+        frames.fill2(params, prior)
     };
-    let prior = PatchPrior {
-        image: &f1,
-        mask: &m1,
-        current_from_previous: shift,
-    };
+    let prior = frames.prior();
+    let TwoFrames { m2, moved1, .. } = &frames;
     // The change of the filled region: frame 2's fill against frame 1's result moved by the
     // camera motion.
-    let change = |img: &ImageRgba8| mse_rgb(img, &moved1, Some(&m2)).expect("mse");
+    let change = |img: &ImageRgba8| mse_rgb(img, moved1, Some(m2)).expect("mse");
     let without: Vec<f64> = [5u64, 6, 7]
         .iter()
         .map(|&s| change(&fill2(None, s)))
@@ -309,35 +314,15 @@ fn the_prior_keeps_a_static_scene_steady() {
 /// filled region shrinks by `1 - beta` where the prior is the previous result itself.
 #[test]
 fn the_temporal_blend_mixes_the_warped_prior_in() {
-    let TwoFrames {
-        t2,
-        m2,
-        f1,
-        m1,
-        moved1,
-        shift,
-    } = two_frames();
-    let prior = PatchPrior {
-        image: &f1,
-        mask: &m1,
-        current_from_previous: shift,
-    };
+    let frames = two_frames();
     let fill2 = |temporal_blend: f32| {
-        let mut f2 = t2.clone();
-        paint(&mut f2, &m2, PROP);
-        let method = FillMethod::Patch(PatchFill {
-            params: PatchParams {
-                temporal_blend,
-                ..PatchParams::default()
-            },
-            prior: Some(prior),
-            ..PatchFill::new()
-        });
-        Diminisher::new()
-            .fill(&mut f2, &m2, &method)
-            .expect("fill 2");
-        f2
+        let params = PatchParams {
+            temporal_blend,
+            ..PatchParams::default()
+        };
+        frames.fill2(params, Some(frames.prior()))
     };
+    let TwoFrames { t2, m2, moved1, .. } = &frames;
     let (plain, blended) = (fill2(0.0), fill2(0.5));
     let (w, h) = t2.size();
     let mut worst = 0.0f64;
@@ -359,7 +344,7 @@ fn the_temporal_blend_mixes_the_warped_prior_in() {
         }
     }
     assert!(worst <= 1.0, "blend off its formula by {worst} levels");
-    let change = |img: &ImageRgba8| mse_rgb(img, &moved1, Some(&m2)).expect("mse");
+    let change = |img: &ImageRgba8| mse_rgb(img, moved1, Some(m2)).expect("mse");
     let (c0, c5) = (change(&plain), change(&blended));
     println!("frame-to-frame change (MSE): blend 0 {c0:.1}, blend 0.5 {c5:.1}");
     assert!(c5 < 0.3 * c0, "{c5} vs {c0}");
@@ -371,7 +356,7 @@ fn the_temporal_blend_mixes_the_warped_prior_in() {
         ..PatchFill::new()
     });
     let mut f = t2.clone();
-    let e = Diminisher::new().fill(&mut f, &m2, &bad);
+    let e = Diminisher::new().fill(&mut f, m2, &bad);
     assert!(
         matches!(
             e,

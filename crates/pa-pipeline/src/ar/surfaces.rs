@@ -170,10 +170,11 @@ impl BoardSurfaces {
         let lab = labels.as_slice();
         // Nothing to paint: no need to measure the levels.
         let to_paint = |i: usize, f: u8| lab[i] == TAG && f == Mask::SET;
-        let any = rows
-            .clone()
-            .any(|y| (y * w + x0..y * w + x1).any(|i| to_paint(i, fill.as_slice()[i])));
-        if self.prints.is_empty() || !any {
+        if self.prints.is_empty()
+            || !rows
+                .clone()
+                .any(|y| (y * w + x0..y * w + x1).any(|i| to_paint(i, fill.as_slice()[i])))
+        {
             return 0;
         }
         let marker_from_camera = camera_from_marker.as_dmat4().inverse();
@@ -247,7 +248,7 @@ impl BoardSurfaces {
         }
         let lo = black.0.map(|v| v / black.1 as f64);
         let hi = white.0.map(|v| v / white.1 as f64);
-        let first = rect.y as usize;
+        let first = rows.start;
         image[first * w * 4..rows.end * w * 4]
             .par_chunks_mut(w * 4)
             .zip(fill.as_mut_slice()[first * w..rows.end * w].par_chunks_mut(w))
