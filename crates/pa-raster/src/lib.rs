@@ -14,7 +14,8 @@
 //! - [`look`]: how a live sample becomes the twin's colour: relighting at the animated
 //!   normal and the feathered seam weight.
 //! - [`texture`]: mip-mapped base-colour textures and the camera-frame sampler, in linear light.
-//! - [`renderer`]: [`CpuRenderer`], long-lived buffers and the per-frame passes.
+//! - [`renderer`]: [`CpuRenderer`], long-lived buffers and the per-frame passes; `shade`,
+//!   its fragment stage (the twin's colour per covered pixel, a few pixels at a time).
 //! - [`mesh`]: closed, outward meshes, whose back faces can be culled without changing the
 //!   image.
 //! - [`sun`]: the set's sun with the twin's own cast shadows (a shadow map along the light),
@@ -31,6 +32,7 @@ pub mod memory;
 pub mod mesh;
 pub mod raster;
 pub mod renderer;
+mod shade;
 pub mod srgb;
 pub mod sun;
 pub mod texture;

@@ -137,7 +137,7 @@ impl LiveParams {
 }
 
 /// Cosine between a normal and the direction from the point to the camera (at the origin).
-#[inline]
+#[inline(always)]
 fn facing_cos(p: Vec3, n: Vec3) -> f32 {
     let len2 = n.dot(n) * p.dot(p);
     if len2 > 0.0 {

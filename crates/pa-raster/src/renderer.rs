@@ -13,14 +13,14 @@
 //! of a small prop costs little at any resolution. Rasterisation and shading run in parallel
 //! over bands of rows (rayon).
 
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::AtomicU32;
 
 use glam::{Mat3, Mat4, Vec3};
 use rayon::prelude::*;
 
-use crate::live::{code, live_lookup_weighted, LiveParams};
-use crate::look;
+use crate::live::{code, LiveParams};
 use crate::raster::{PixelRect, RasterCamera, TriSetup, VisBuffer, NO_TRIANGLE};
+use crate::shade::ShadeContext;
 use crate::srgb::{decode_lut, Encoder};
 use crate::texture::{CpuMipTexture, FrameSampler};
 
@@ -155,36 +155,36 @@ impl CpuTwinImage {
 
 /// Per-vertex attributes of a frame, in the camera's coordinates (as the GPU's varyings).
 #[derive(Debug, Clone, Copy, Default)]
-struct Vertex {
+pub(crate) struct Vertex {
     /// Pixel position of `anim_camera` for triangle set-up (None in front of the near plane).
-    pixel: Option<[f64; 2]>,
-    anim_camera: Vec3,
-    anim_normal_camera: Vec3,
-    anim_normal_world: Vec3,
-    key_camera: Vec3,
-    key_normal_camera: Vec3,
+    pub(crate) pixel: Option<[f64; 2]>,
+    pub(crate) anim_camera: Vec3,
+    pub(crate) anim_normal_camera: Vec3,
+    pub(crate) anim_normal_world: Vec3,
+    pub(crate) key_camera: Vec3,
+    pub(crate) key_normal_camera: Vec3,
     /// The key-pose normal in the world (the relighting's frame).
-    key_normal_world: Vec3,
-    uv: [f32; 2],
+    pub(crate) key_normal_world: Vec3,
+    pub(crate) uv: [f32; 2],
     /// Texture memory (premultiplied linear RGB, confidence); zero without.
-    memory: [f32; 4],
+    pub(crate) memory: [f32; 4],
     /// Fraction of the sun received, `[key pose, animated pose]`.
-    sun_lit: [f32; 2],
+    pub(crate) sun_lit: [f32; 2],
 }
 
 /// Per-triangle data beside its set-up.
 #[derive(Debug)]
-struct Tri {
+pub(crate) struct Tri {
     /// Global vertex indices.
-    v: [u32; 3],
-    mesh: u32,
+    pub(crate) v: [u32; 3],
+    pub(crate) mesh: u32,
     /// Mip level of the albedo (from the triangle's screen-space texel footprint), as f32
     /// bits; computed by the first pixel that needs it (`LOD_UNSET` until then).
-    lod_bits: AtomicU32,
+    pub(crate) lod_bits: AtomicU32,
 }
 
 /// `Tri::lod_bits` before it is computed (a NaN no computation produces).
-const LOD_UNSET: u32 = 0x7fc0_dead;
+pub(crate) const LOD_UNSET: u32 = 0x7fc0_dead;
 
 impl Default for Tri {
     fn default() -> Self {
@@ -404,192 +404,5 @@ impl CpuRenderer {
                 }
             });
         &self.image
-    }
-}
-
-/// Mip level of a triangle's albedo: log2 of the larger screen-space derivative of its
-/// texel coordinates (the GPU's per-quad derivative, taken once per triangle).
-fn triangle_lod(v: [Vertex; 3], tex_size: (u32, u32)) -> f32 {
-    let (Some([x0, y0]), Some([x1, y1]), Some([x2, y2])) = (v[0].pixel, v[1].pixel, v[2].pixel)
-    else {
-        return 0.0;
-    };
-    let (p0, p1, p2) = ((x0, y0), (x1, y1), (x2, y2));
-    let (tw, th) = (tex_size.0 as f64, tex_size.1 as f64);
-    let t = v.map(|v| (v.uv[0] as f64 * tw, v.uv[1] as f64 * th));
-    // [dt1 dt2] = J [dp1 dp2]  =>  J = [dt1 dt2] [dp1 dp2]^-1.
-    let (a, b, c, d) = (p1.0 - p0.0, p2.0 - p0.0, p1.1 - p0.1, p2.1 - p0.1);
-    let det = a * d - b * c;
-    if det.abs() < 1e-9 {
-        return 0.0;
-    }
-    let (ia, ib, ic, id) = (d / det, -b / det, -c / det, a / det);
-    let (s1, s2) = (
-        (t[1].0 - t[0].0, t[1].1 - t[0].1),
-        (t[2].0 - t[0].0, t[2].1 - t[0].1),
-    );
-    // Columns of J: d(texel)/dx and d(texel)/dy.
-    let jx = (s1.0 * ia + s2.0 * ic, s1.1 * ia + s2.1 * ic);
-    let jy = (s1.0 * ib + s2.0 * id, s1.1 * ib + s2.1 * id);
-    let rho = (jx.0 * jx.0 + jx.1 * jx.1)
-        .max(jy.0 * jy.0 + jy.1 * jy.1)
-        .sqrt();
-    if rho > 1.0 && rho.is_finite() {
-        fast_log2(rho as f32).max(0.0)
-    } else {
-        0.0
-    }
-}
-
-/// log2 of a positive normal float within 0.0015 (exponent plus a cubic in the mantissa,
-/// least-squares fit), without the library call: enough for a mip level.
-fn fast_log2(x: f32) -> f32 {
-    let bits = x.to_bits();
-    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
-    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000) - 1.0;
-    exponent as f32 + m * (1.423_485_3 + m * (-0.587_733_8 + m * 0.165_558_8))
-}
-
-struct ShadeContext<'a> {
-    setups: &'a [Option<TriSetup>],
-    tris: &'a [Tri],
-    vertices: &'a [Vertex],
-    meshes: &'a [CpuLiveMesh<'a>],
-    shading: &'a Shading<'a>,
-    key: &'a VisBuffer,
-    lut: &'static [f32; 256],
-    encoder: Encoder,
-}
-
-impl ShadeContext<'_> {
-    /// Colour (sRGB RGBA8) and code of the surface `id` at pixel `(x, y)`.
-    #[inline]
-    fn shade(&self, id: u32, x: u32, y: u32) -> (u8, [u8; 4]) {
-        let Some(s) = &self.setups[id as usize] else {
-            return (code::NONE, [0; 4]);
-        };
-        let t = &self.tris[id as usize];
-        let hit = s.hit(x as f32, y as f32);
-        let [b0, b1, b2] = hit.b;
-        let [va, vb, vc] = t.v.map(|i| &self.vertices[i as usize]);
-        let lerp3 = |f: fn(&Vertex) -> Vec3| f(va) * b0 + f(vb) * b1 + f(vc) * b2;
-        let mesh = &self.meshes[t.mesh as usize].mesh;
-        let uv = [
-            va.uv[0] * b0 + vb.uv[0] * b1 + vc.uv[0] * b2,
-            va.uv[1] * b0 + vb.uv[1] * b1 + vc.uv[1] * b2,
-        ];
-        let albedo = || -> [f32; 4] {
-            let texel = match mesh.albedo {
-                Some(tex) => {
-                    let mut bits = t.lod_bits.load(Ordering::Relaxed);
-                    if bits == LOD_UNSET {
-                        bits = triangle_lod([*va, *vb, *vc], tex.size()).to_bits();
-                        t.lod_bits.store(bits, Ordering::Relaxed);
-                    }
-                    tex.sample(uv[0], uv[1], f32::from_bits(bits))
-                }
-                None => [1.0; 4],
-            };
-            std::array::from_fn(|c| texel[c] * mesh.base_color_factor[c])
-        };
-        let opaque = mesh.base_color_factor[3] >= 1.0 && mesh.albedo.is_none_or(|t| t.is_opaque());
-        let (code, rgb, a) = match self.shading {
-            Shading::Albedo => {
-                let a = albedo();
-                (code::NONE, [a[0], a[1], a[2]], a[3])
-            }
-            Shading::Live { frame, params } => {
-                let (code, pixel, weight) = live_lookup_weighted(
-                    params,
-                    self.key,
-                    lerp3(|v| v.key_camera),
-                    lerp3(|v| v.key_normal_camera),
-                    lerp3(|v| v.anim_camera),
-                    lerp3(|v| v.anim_normal_camera),
-                );
-                // Without vertex normals n is zero and the irradiance is its constant term.
-                let normal = || {
-                    let n = lerp3(|v| v.anim_normal_world).normalize_or_zero();
-                    if s.ccw_on_screen == mesh.mirrored {
-                        -n
-                    } else {
-                        n
-                    }
-                };
-                // The remembered colour first, the lit model texture where the memory is unsure.
-                let sun_lit = || -> [f32; 2] {
-                    std::array::from_fn(|k| {
-                        va.sun_lit[k] * b0 + vb.sun_lit[k] * b1 + vc.sun_lit[k] * b2
-                    })
-                };
-                // Relighting from the key pose's normal to the in-between's, for what was seen
-                // in the key pose: the live sample, and the remembered colour.
-                let relight_factor = || -> [f32; 3] {
-                    let nk = lerp3(|v| v.key_normal_world).normalize_or_zero();
-                    match &params.sun {
-                        Some(sun) => {
-                            let lit = sun_lit();
-                            sun.relight_factor(nk, lit[0], normal(), lit[1])
-                        }
-                        None => look::relight_factor(&params.fallback_irradiance, nk, normal()),
-                    }
-                };
-                let fallback = |a: &[f32; 4]| -> [f32; 3] {
-                    let e = match &params.sun {
-                        Some(sun) => sun.irradiance(normal(), sun_lit()[1]),
-                        None => look::irradiance(&params.fallback_irradiance, normal()),
-                    };
-                    let lit = std::array::from_fn(|c| a[c] * e[c]);
-                    let mut memory: [f32; 4] = std::array::from_fn(|c| {
-                        va.memory[c] * b0 + vb.memory[c] * b1 + vc.memory[c] * b2
-                    });
-                    if params.relight && memory[3] > 0.0 {
-                        let f = relight_factor();
-                        for c in 0..3 {
-                            memory[c] *= f[c];
-                        }
-                    }
-                    crate::memory::remembered_or(memory, lit)
-                };
-                if code == code::VALID {
-                    let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
-                    if params.relight {
-                        let f = relight_factor();
-                        rgb = std::array::from_fn(|c| rgb[c] * f[c]);
-                    }
-                    if weight < 1.0 {
-                        let a = albedo();
-                        (code, look::blend(rgb, fallback(&a), weight), a[3])
-                    } else {
-                        // The albedo only for its alpha (the GPU writes albedo.a everywhere).
-                        let a = if opaque { 1.0 } else { albedo()[3] };
-                        (code, rgb, a)
-                    }
-                } else {
-                    let a = albedo();
-                    (code, fallback(&a), a[3])
-                }
-            }
-        };
-        let alpha = (a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-        let e = &self.encoder;
-        (
-            code,
-            [e.encode(rgb[0]), e.encode(rgb[1]), e.encode(rgb[2]), alpha],
-        )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::fast_log2;
-
-    #[test]
-    fn fast_log2_is_close() {
-        let mut x = 1.0f32;
-        while x < 1e6 {
-            assert!((fast_log2(x) - x.log2()).abs() < 0.0015, "{x}");
-            x *= 1.013;
-        }
     }
 }

@@ -226,7 +226,7 @@ impl<'a> FrameSampler<'a> {
 
     /// Linear RGB at pixel `(px, py)` (OpenCV convention: the centre of pixel `(i, j)` is the
     /// point `(i, j)`).
-    #[inline]
+    #[inline(always)]
     pub fn sample_linear(&self, px: f32, py: f32, lut: &[f32; 256]) -> [f32; 3] {
         let (w, h) = (self.width as i32, self.height as i32);
         let (x0, y0) = (floor_i64(px) as i32, floor_i64(py) as i32);
@@ -235,12 +235,24 @@ impl<'a> FrameSampler<'a> {
         let cy = |y: i32| y.clamp(0, h - 1) as usize;
         let (xa, xb, ya, yb) = (cx(x0), cx(x0 + 1), cy(y0), cy(y0 + 1));
         let row = self.width as usize;
-        let t = |x: usize, y: usize, c: usize| lut[self.rgba8[(y * row + x) * 4 + c] as usize];
-        std::array::from_fn(|c| {
-            let top = t(xa, ya, c) + (t(xb, ya, c) - t(xa, ya, c)) * fx;
-            let bottom = t(xa, yb, c) + (t(xb, yb, c) - t(xa, yb, c)) * fx;
-            top + (bottom - top) * fy
-        })
+        // The four texels' RGB (one bounds check each).
+        let texel = |x: usize, y: usize| -> [u8; 3] {
+            let o = (y * row + x) * 4;
+            match self.rgba8.get(o..o + 3) {
+                Some(&[r, g, b]) => [r, g, b],
+                _ => [0; 3],
+            }
+        };
+        let (t00, t10, t01, t11) = (texel(xa, ya), texel(xb, ya), texel(xa, yb), texel(xb, yb));
+        let mut out = [0.0; 3];
+        for c in 0..3 {
+            let (a, b) = (lut[t00[c] as usize], lut[t10[c] as usize]);
+            let (d, e) = (lut[t01[c] as usize], lut[t11[c] as usize]);
+            let top = a + (b - a) * fx;
+            let bottom = d + (e - d) * fx;
+            out[c] = top + (bottom - top) * fy;
+        }
+        out
     }
 }
 

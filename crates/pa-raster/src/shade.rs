@@ -1,0 +1,274 @@
+//! The twin's colour per covered pixel (the fragment stage of [`CpuRenderer::render_twin`]):
+//! the model's albedo, or the live frame's colour at the key-pose point with relighting, the
+//! feathered blend with the lit fallback and the remembered colour, exactly as `live.wgsl`.
+//! Each quantity is computed at most once per pixel, and only where the pixel's colour needs
+//! it (the fallback's normal, sunlight fraction and remembered colour only where the live
+//! sample is missing or partly trusted).
+//!
+//! [`CpuRenderer::render_twin`]: crate::CpuRenderer::render_twin
+
+use std::sync::atomic::Ordering;
+
+use glam::Vec3;
+
+use crate::live::{code, live_lookup_weighted};
+use crate::look;
+use crate::raster::{TriSetup, VisBuffer};
+use crate::renderer::{CpuLiveMesh, CpuPosedMesh, Shading, Tri, Vertex, LOD_UNSET};
+use crate::srgb::Encoder;
+use crate::texture::FrameSampler;
+use crate::LiveParams;
+
+/// Mip level of a triangle's albedo: log2 of the larger screen-space derivative of its
+/// texel coordinates (the GPU's per-quad derivative, taken once per triangle).
+fn triangle_lod(v: [Vertex; 3], tex_size: (u32, u32)) -> f32 {
+    let (Some([x0, y0]), Some([x1, y1]), Some([x2, y2])) = (v[0].pixel, v[1].pixel, v[2].pixel)
+    else {
+        return 0.0;
+    };
+    let (p0, p1, p2) = ((x0, y0), (x1, y1), (x2, y2));
+    let (tw, th) = (tex_size.0 as f64, tex_size.1 as f64);
+    let t = v.map(|v| (v.uv[0] as f64 * tw, v.uv[1] as f64 * th));
+    // [dt1 dt2] = J [dp1 dp2]  =>  J = [dt1 dt2] [dp1 dp2]^-1.
+    let (a, b, c, d) = (p1.0 - p0.0, p2.0 - p0.0, p1.1 - p0.1, p2.1 - p0.1);
+    let det = a * d - b * c;
+    if det.abs() < 1e-9 {
+        return 0.0;
+    }
+    let (ia, ib, ic, id) = (d / det, -b / det, -c / det, a / det);
+    let (s1, s2) = (
+        (t[1].0 - t[0].0, t[1].1 - t[0].1),
+        (t[2].0 - t[0].0, t[2].1 - t[0].1),
+    );
+    // Columns of J: d(texel)/dx and d(texel)/dy.
+    let jx = (s1.0 * ia + s2.0 * ic, s1.1 * ia + s2.1 * ic);
+    let jy = (s1.0 * ib + s2.0 * id, s1.1 * ib + s2.1 * id);
+    let rho = (jx.0 * jx.0 + jx.1 * jx.1)
+        .max(jy.0 * jy.0 + jy.1 * jy.1)
+        .sqrt();
+    if rho > 1.0 && rho.is_finite() {
+        fast_log2(rho as f32).max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// log2 of a positive normal float within 0.0015 (exponent plus a cubic in the mantissa,
+/// least-squares fit), without the library call: enough for a mip level.
+fn fast_log2(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000) - 1.0;
+    exponent as f32 + m * (1.423_485_3 + m * (-0.587_733_8 + m * 0.165_558_8))
+}
+
+/// What the fragment stage reads: the frame's set-ups, triangles and vertices.
+pub(crate) struct ShadeContext<'a> {
+    pub setups: &'a [Option<TriSetup>],
+    pub tris: &'a [Tri],
+    pub vertices: &'a [Vertex],
+    pub meshes: &'a [CpuLiveMesh<'a>],
+    pub shading: &'a Shading<'a>,
+    pub key: &'a VisBuffer,
+    pub lut: &'static [f32; 256],
+    pub encoder: Encoder,
+}
+
+/// One covered pixel: its triangle, vertices and perspective-correct barycentrics.
+#[derive(Clone, Copy)]
+struct Fragment<'a> {
+    s: &'a TriSetup,
+    t: &'a Tri,
+    v: [&'a Vertex; 3],
+    b: [f32; 3],
+    mesh: &'a CpuPosedMesh<'a>,
+}
+
+impl Fragment<'_> {
+    /// A per-vertex attribute interpolated at the pixel.
+    #[inline(always)]
+    fn lerp3(&self, f: impl Fn(&Vertex) -> Vec3) -> Vec3 {
+        let ([va, vb, vc], [b0, b1, b2]) = (self.v, self.b);
+        f(va) * b0 + f(vb) * b1 + f(vc) * b2
+    }
+
+    /// `N` interpolated scalars.
+    #[inline(always)]
+    fn lerp<const N: usize>(&self, f: impl Fn(&Vertex) -> [f32; N]) -> [f32; N] {
+        let ([va, vb, vc], [b0, b1, b2]) = (self.v, self.b);
+        let (a, b, c) = (f(va), f(vb), f(vc));
+        std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
+    }
+
+    /// The inputs of the live look-up: key-pose point and normal, animated point and normal.
+    #[inline(always)]
+    fn lookup_inputs(&self) -> [Vec3; 4] {
+        [
+            self.lerp3(|v| v.key_camera),
+            self.lerp3(|v| v.key_normal_camera),
+            self.lerp3(|v| v.anim_camera),
+            self.lerp3(|v| v.anim_normal_camera),
+        ]
+    }
+}
+
+impl ShadeContext<'_> {
+    #[inline(always)]
+    fn fragment(&self, id: u32, x: u32, y: u32) -> Option<Fragment<'_>> {
+        let s = self.setups[id as usize].as_ref()?;
+        let t = &self.tris[id as usize];
+        let v = t.v.map(|i| &self.vertices[i as usize]);
+        Some(Fragment {
+            s,
+            t,
+            v,
+            b: s.hit(x as f32, y as f32).b,
+            mesh: &self.meshes[t.mesh as usize].mesh,
+        })
+    }
+
+    /// The model's colour (texture times factor), linear RGBA.
+    #[inline]
+    fn albedo(&self, f: &Fragment<'_>) -> [f32; 4] {
+        let mesh = f.mesh;
+        let texel = match mesh.albedo {
+            Some(tex) => {
+                let uv = f.lerp(|v| v.uv);
+                let mut bits = f.t.lod_bits.load(Ordering::Relaxed);
+                if bits == LOD_UNSET {
+                    bits = triangle_lod(f.v.map(|v| *v), tex.size()).to_bits();
+                    f.t.lod_bits.store(bits, Ordering::Relaxed);
+                }
+                tex.sample(uv[0], uv[1], f32::from_bits(bits))
+            }
+            None => [1.0; 4],
+        };
+        std::array::from_fn(|c| texel[c] * mesh.base_color_factor[c])
+    }
+
+    /// sRGB RGBA8 of a linear colour and alpha.
+    #[inline(always)]
+    fn encode(&self, rgb: [f32; 3], a: f32) -> [u8; 4] {
+        let alpha = (a.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+        let e = &self.encoder;
+        [e.encode(rgb[0]), e.encode(rgb[1]), e.encode(rgb[2]), alpha]
+    }
+
+    /// Colour (sRGB RGBA8) and code of the surface `id` at pixel `(x, y)`.
+    #[inline]
+    pub fn shade(&self, id: u32, x: u32, y: u32) -> (u8, [u8; 4]) {
+        let Some(f) = self.fragment(id, x, y) else {
+            return (code::NONE, [0; 4]);
+        };
+        match self.shading {
+            Shading::Albedo => {
+                let a = self.albedo(&f);
+                (code::NONE, self.encode([a[0], a[1], a[2]], a[3]))
+            }
+            Shading::Live { frame, params } => {
+                let [pc, nc, pa, na] = f.lookup_inputs();
+                let (code, pixel, weight) = live_lookup_weighted(params, self.key, pc, nc, pa, na);
+                let (rgb, a) = self.live_colour(&f, frame, params, code, pixel, weight);
+                (code, self.encode(rgb, a))
+            }
+        }
+    }
+
+    /// The live-textured colour (linear) and alpha of a fragment given its look-up.
+    #[inline(always)]
+    fn live_colour(
+        &self,
+        f: &Fragment<'_>,
+        frame: &FrameSampler<'_>,
+        params: &LiveParams,
+        code: u8,
+        pixel: [f32; 2],
+        weight: f32,
+    ) -> ([f32; 3], f32) {
+        let mesh = f.mesh;
+        let opaque = mesh.base_color_factor[3] >= 1.0 && mesh.albedo.is_none_or(|t| t.is_opaque());
+        let valid = code == code::VALID;
+        // The fallback (lit model texture, or the remembered colour first) where the live
+        // sample is missing or only partly trusted.
+        let fallback = !valid || weight < 1.0;
+        let memory: [f32; 4] = if fallback {
+            f.lerp(|v| v.memory)
+        } else {
+            [0.0; 4]
+        };
+        // Relighting from the key pose's normal to the in-between's, for what was seen in the
+        // key pose: the live sample, and the remembered colour.
+        let relight = params.relight && (valid || memory[3] > 0.0);
+        // Each of these at most once per pixel.
+        let (normal, lit) = if relight || fallback {
+            // Without vertex normals n is zero and the irradiance is its constant term.
+            let n = f.lerp3(|v| v.anim_normal_world).normalize_or_zero();
+            let n = if f.s.ccw_on_screen == mesh.mirrored {
+                -n
+            } else {
+                n
+            };
+            let lit: [f32; 2] = match params.sun {
+                Some(_) => f.lerp(|v| v.sun_lit),
+                None => [1.0; 2],
+            };
+            (n, lit)
+        } else {
+            (Vec3::ZERO, [1.0; 2])
+        };
+        let factor = if relight {
+            let nk = f.lerp3(|v| v.key_normal_world).normalize_or_zero();
+            match &params.sun {
+                Some(sun) => sun.relight_factor(nk, lit[0], normal, lit[1]),
+                None => look::relight_factor(&params.fallback_irradiance, nk, normal),
+            }
+        } else {
+            [1.0; 3]
+        };
+        let fallback_rgb = |a: &[f32; 4]| -> [f32; 3] {
+            let e = match &params.sun {
+                Some(sun) => sun.irradiance(normal, lit[1]),
+                None => look::irradiance(&params.fallback_irradiance, normal),
+            };
+            let lit = std::array::from_fn(|c| a[c] * e[c]);
+            let mut memory = memory;
+            if params.relight && memory[3] > 0.0 {
+                for c in 0..3 {
+                    memory[c] *= factor[c];
+                }
+            }
+            crate::memory::remembered_or(memory, lit)
+        };
+        if valid {
+            let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
+            if params.relight {
+                rgb = std::array::from_fn(|c| rgb[c] * factor[c]);
+            }
+            if weight < 1.0 {
+                let a = self.albedo(f);
+                (look::blend(rgb, fallback_rgb(&a), weight), a[3])
+            } else {
+                // The albedo only for its alpha (the GPU writes albedo.a everywhere).
+                let a = if opaque { 1.0 } else { self.albedo(f)[3] };
+                (rgb, a)
+            }
+        } else {
+            let a = self.albedo(f);
+            (fallback_rgb(&a), a[3])
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fast_log2;
+
+    #[test]
+    fn fast_log2_is_close() {
+        let mut x = 1.0f32;
+        while x < 1e6 {
+            assert!((fast_log2(x) - x.log2()).abs() < 0.0015, "{x}");
+            x *= 1.013;
+        }
+    }
+}
