@@ -435,43 +435,39 @@ impl VisBuffer {
     }
 
     /// Rasterises `setups` (ids are their indices plus `id_base`) with a depth test against
-    /// what the buffer holds, in parallel over bands of rows.
+    /// what the buffer holds, in parallel over bands of [`BAND_ROWS`] rows. Each band draws
+    /// only the triangles binned to it, in index order (so ties in the depth test keep the
+    /// first triangle, as on the GPU), and binning reads each set-up twice whatever the
+    /// number of bands.
     pub fn draw<S: SetupSlot>(&mut self, cam: &RasterCamera, setups: &[S], id_base: u32) {
-        let Some(rect) = setups
-            .iter()
-            .filter_map(|s| s.setup())
-            .map(|s| s.rect)
-            .reduce(PixelRect::union)
-        else {
+        let bins = Bins::of(setups, self.height as usize);
+        let Some(rect) = bins.iter().filter_map(|b| b.rect).reduce(PixelRect::union) else {
             return;
         };
         self.dirty = PixelRect::union_opt(self.dirty, Some(rect));
         let w = self.width as usize;
         let inv_near = 1.0 / cam.near_m;
         let inv_far = 1.0 / cam.far_m;
-        // Bands of rows inside the rectangle; enough of them for the thread pool to balance.
-        let rows = (rect.y1 - rect.y0 + 1) as usize;
-        let band = rows.div_ceil(4 * rayon::current_num_threads()).max(8);
-        let start = rect.y0 as usize * w;
-        let end = (rect.y1 as usize + 1) * w;
+        let (first_band, last_band) = (rect.y0 as usize / BAND_ROWS, rect.y1 as usize / BAND_ROWS);
+        let start = first_band * BAND_ROWS * w;
+        let end = ((last_band + 1) * BAND_ROWS).min(self.height as usize) * w;
         let inv_z = &mut self.inv_z[start..end];
         let ids = &mut self.id[start..end];
         inv_z
-            .par_chunks_mut(band * w)
-            .zip(ids.par_chunks_mut(band * w))
+            .par_chunks_mut(BAND_ROWS * w)
+            .zip(ids.par_chunks_mut(BAND_ROWS * w))
             .enumerate()
             .for_each(|(k, (zs, is))| {
-                let y_begin = rect.y0 + (k * band) as u32;
+                let band = first_band + k;
+                let y_begin = (band * BAND_ROWS) as u32;
                 let y_end = y_begin + (zs.len() / w) as u32 - 1;
-                for (i, s) in setups.iter().enumerate() {
-                    let Some(s) = s.setup() else {
+                let binned = bins.iter().flat_map(|b| b.band(band));
+                for i in binned {
+                    let Some(s) = setups[i as usize].setup() else {
                         continue;
                     };
                     let r = s.rect;
-                    if r.y1 < y_begin || r.y0 > y_end {
-                        continue;
-                    }
-                    let id = id_base + i as u32;
+                    let id = id_base + i;
                     for y in r.y0.max(y_begin)..r.y1.min(y_end) + 1 {
                         let yf = y as f32;
                         // The row's span where every form is >= 0 (each is affine in x), one
@@ -506,6 +502,81 @@ impl VisBuffer {
                     }
                 }
             });
+    }
+}
+
+/// Rows of a band of [`VisBuffer::draw`] (bands start at multiples of it).
+pub const BAND_ROWS: usize = 16;
+
+/// The set-ups of one run of consecutive indices sorted into the bands their rows touch
+/// (counting sort): a triangle spanning several bands is in each.
+struct Bins {
+    /// Bounds of the run's set-ups.
+    rect: Option<PixelRect>,
+    /// `order[starts[b]..starts[b + 1]]`: the indices (into all set-ups) in band `b`,
+    /// increasing.
+    starts: Vec<u32>,
+    order: Vec<u32>,
+}
+
+impl Bins {
+    /// Set-ups per run: enough runs for the thread pool, few enough that each band's lists
+    /// stay long.
+    const MIN_RUN: usize = 2048;
+
+    /// The bins of `setups` over an image `height` rows tall, runs in parallel.
+    fn of<S: SetupSlot>(setups: &[S], height: usize) -> Vec<Bins> {
+        let bands = height.div_ceil(BAND_ROWS);
+        let run = setups
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(Self::MIN_RUN);
+        setups
+            .par_chunks(run)
+            .enumerate()
+            .map(|(c, chunk)| {
+                let base = (c * run) as u32;
+                let bands_of = |r: PixelRect| {
+                    (r.y0 as usize / BAND_ROWS)..=(r.y1 as usize / BAND_ROWS).min(bands - 1)
+                };
+                let mut starts = vec![0u32; bands + 1];
+                let mut rect = None;
+                for s in chunk.iter().filter_map(SetupSlot::setup) {
+                    rect = PixelRect::union_opt(rect, Some(s.rect));
+                    for b in bands_of(s.rect) {
+                        starts[b + 1] += 1;
+                    }
+                }
+                for b in 0..bands {
+                    starts[b + 1] += starts[b];
+                }
+                let mut next = starts.clone();
+                let mut order = vec![0u32; starts[bands] as usize];
+                for (i, s) in chunk.iter().enumerate() {
+                    let Some(s) = s.setup() else {
+                        continue;
+                    };
+                    for b in bands_of(s.rect) {
+                        order[next[b] as usize] = base + i as u32;
+                        next[b] += 1;
+                    }
+                }
+                Bins {
+                    rect,
+                    starts,
+                    order,
+                }
+            })
+            .collect()
+    }
+
+    /// The indices in `band`, increasing.
+    fn band(&self, band: usize) -> impl Iterator<Item = u32> + '_ {
+        let (a, b) = match (self.starts.get(band), self.starts.get(band + 1)) {
+            (Some(&a), Some(&b)) => (a as usize, b as usize),
+            _ => (0, 0),
+        };
+        self.order[a..b].iter().copied()
     }
 }
 

@@ -225,8 +225,8 @@ impl CpuRenderer {
         meshes: &[CpuDepthMesh<'_>],
     ) -> &VisBuffer {
         self.key.reset(camera.width, camera.height);
-        self.key_setups.clear();
         let total: usize = meshes.iter().map(|m| m.indices.len() / 3).sum();
+        // Every slot is written below: the list is only resized (not cleared) between frames.
         self.key_setups.resize(total, None);
         let mut offset = 0;
         for m in meshes {
@@ -298,7 +298,7 @@ impl CpuRenderer {
         self.twin.reset(w, h);
         self.image.reset(w, h);
         let total: usize = meshes.iter().map(|m| m.mesh.indices.len() / 3).sum();
-        self.setups.clear();
+        // Every slot is written below: the lists are only resized (not cleared) between frames.
         self.setups.resize(total, None);
         self.tris.resize_with(total, Tri::default);
         self.vertices.clear();
@@ -347,7 +347,7 @@ impl CpuRenderer {
                     return;
                 }
                 let v = [base + tri[0], base + tri[1], base + tri[2]];
-                let [a, b, c] = v.map(|i| vertices[i as usize]);
+                let [a, b, c] = v.map(|i| &vertices[i as usize]);
                 *slot = TriSetup::new_projected(
                     camera,
                     [a.anim_camera, b.anim_camera, c.anim_camera],

@@ -20,7 +20,10 @@
 //! Conventions: positions and normals in the world frame the light is fitted in; the map's
 //! depth is `p . l` (larger is nearer the light); cells square, `cell_m` metres.
 
+use std::ops::Range;
+
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::look::MIN_IRRADIANCE;
 
@@ -144,31 +147,65 @@ impl ShadowMap {
             depth: vec![f32::NEG_INFINITY; width * height],
         };
         let inv_cell = 1.0 / cell_m;
-        for (q, (_, indices)) in projected.iter_mut().zip(meshes) {
+        for q in projected.iter_mut() {
             for p in q.iter_mut() {
                 p[0] = (p[0] - u0) * inv_cell - 0.5;
                 p[1] = (p[1] - v0) * inv_cell - 0.5;
             }
-            // Each vertex marks its own cell too, so triangles smaller than a cell leave no
-            // holes.
-            for p in q.iter() {
-                if p.iter().all(|v| v.is_finite()) {
-                    let (x, y) = ((p[0] + 0.5) as usize, (p[1] + 0.5) as usize);
-                    if x < width && y < height {
-                        let cell = &mut map.depth[y * width + x];
-                        *cell = cell.max(p[2]);
+        }
+        // Each mesh's vertices, then runs of its triangles, drawn in parallel into partial
+        // maps merged by the maximum: the same map as drawing them one after the other.
+        const TRIANGLES_PER_TASK: usize = 1024;
+        let mut tasks = Vec::new();
+        for (m, (_, indices)) in meshes.iter().enumerate() {
+            tasks.push((m, None));
+            let count = indices.len() / 3;
+            tasks.extend(
+                (0..count)
+                    .step_by(TRIANGLES_PER_TASK)
+                    .map(|t| (m, Some(t..(t + TRIANGLES_PER_TASK).min(count)))),
+            );
+        }
+        let empty = || vec![f32::NEG_INFINITY; width * height];
+        let draw = |mut depth: Vec<f32>, (m, triangles): &(usize, Option<Range<usize>>)| {
+            let q = &projected[*m];
+            match triangles {
+                // Each vertex marks its own cell too, so triangles smaller than a cell leave
+                // no holes.
+                None => {
+                    for p in q.iter() {
+                        if p.iter().all(|v| v.is_finite()) {
+                            let (x, y) = ((p[0] + 0.5) as usize, (p[1] + 0.5) as usize);
+                            if x < width && y < height {
+                                let cell = &mut depth[y * width + x];
+                                *cell = cell.max(p[2]);
+                            }
+                        }
+                    }
+                }
+                Some(range) => {
+                    let indices = &meshes[*m].1[range.start * 3..range.end * 3];
+                    for t in indices.chunks_exact(3) {
+                        if let (Some(a), Some(b), Some(c)) = (
+                            q.get(t[0] as usize),
+                            q.get(t[1] as usize),
+                            q.get(t[2] as usize),
+                        ) {
+                            draw_triangle(&mut depth, width, height, [*a, *b, *c]);
+                        }
                     }
                 }
             }
-            for t in indices.chunks_exact(3) {
-                if let (Some(a), Some(b), Some(c)) = (
-                    q.get(t[0] as usize),
-                    q.get(t[1] as usize),
-                    q.get(t[2] as usize),
-                ) {
-                    map.draw_triangle([*a, *b, *c]);
-                }
+            depth
+        };
+        let merged = tasks.par_iter().fold(empty, draw).reduce_with(|mut a, b| {
+            for (x, y) in a.iter_mut().zip(&b) {
+                *x = x.max(*y);
             }
+            a
+        });
+        if let Some(depth) = merged {
+            map.depth = depth;
         }
         map
     }
@@ -181,58 +218,6 @@ impl ShadowMap {
             (p.dot(self.v) - self.v0) / self.cell_m - 0.5,
             p.dot(self.toward_light),
         )
-    }
-
-    /// Draws a triangle given in cell coordinates and depth (`[x, y, depth]`; NaN: skipped).
-    fn draw_triangle(&mut self, q: [[f32; 3]; 3]) {
-        if q.iter().flatten().any(|v| !v.is_finite()) {
-            return;
-        }
-        let [a, b, c] = q;
-        let area = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-        if area.abs() < 1e-12 {
-            return;
-        }
-        // Integer floor and ceiling without the library calls (no rounding instruction in
-        // the baseline x86-64 target); the coordinates are finite here.
-        let floor = |x: f32| {
-            let t = x as i32;
-            t - i32::from((t as f32) > x)
-        };
-        let ceil = |x: f32| {
-            let t = x as i32;
-            t + i32::from((t as f32) < x)
-        };
-        let x0 = ceil(a[0].min(b[0]).min(c[0])).max(0);
-        let y0 = ceil(a[1].min(b[1]).min(c[1])).max(0);
-        let x1 = floor(a[0].max(b[0]).max(c[0])).min(self.width as i32 - 1);
-        let y1 = floor(a[1].max(b[1]).max(c[1])).min(self.height as i32 - 1);
-        if x1 < x0 || y1 < y0 {
-            return;
-        }
-        let (x0, y0, x1, y1) = (x0 as usize, y0 as usize, x1 as usize, y1 as usize);
-        // Barycentric weights of b and c, and the depth, as planes in (x, y).
-        let inv = 1.0 / area;
-        let (wb_x, wb_y) = ((c[1] - a[1]) * inv, -(c[0] - a[0]) * inv);
-        let (wc_x, wc_y) = (-(b[1] - a[1]) * inv, (b[0] - a[0]) * inv);
-        let (db, dc) = (b[2] - a[2], c[2] - a[2]);
-        let (d_x, d_y) = (wb_x * db + wc_x * dc, wb_y * db + wc_y * dc);
-        const EPS: f32 = -1e-4;
-        for y in y0..=y1 {
-            let (ry, rx) = (y as f32 - a[1], x0 as f32 - a[0]);
-            let mut wb = wb_x * rx + wb_y * ry;
-            let mut wc = wc_x * rx + wc_y * ry;
-            let mut d = a[2] + d_x * rx + d_y * ry;
-            let row = &mut self.depth[y * self.width..];
-            for cell in &mut row[x0..=x1] {
-                if wb >= EPS && wc >= EPS && wb + wc <= 1.0 - EPS && d > *cell {
-                    *cell = d;
-                }
-                wb += wb_x;
-                wc += wc_x;
-                d += d_x;
-            }
-        }
     }
 
     /// The fraction in [0, 1] of the light that reaches the surface point `p` with normal `n`
@@ -281,6 +266,59 @@ impl ShadowMap {
             1.0
         } else {
             self.lit(p, n)
+        }
+    }
+}
+
+/// Draws a triangle into the `depth` of a `width` x `height` map, given in cell coordinates
+/// and depth (`[x, y, depth]`; NaN: skipped).
+fn draw_triangle(depth: &mut [f32], width: usize, height: usize, q: [[f32; 3]; 3]) {
+    if q.iter().flatten().any(|v| !v.is_finite()) {
+        return;
+    }
+    let [a, b, c] = q;
+    let area = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    if area.abs() < 1e-12 {
+        return;
+    }
+    // Integer floor and ceiling without the library calls (no rounding instruction in
+    // the baseline x86-64 target); the coordinates are finite here.
+    let floor = |x: f32| {
+        let t = x as i32;
+        t - i32::from((t as f32) > x)
+    };
+    let ceil = |x: f32| {
+        let t = x as i32;
+        t + i32::from((t as f32) < x)
+    };
+    let x0 = ceil(a[0].min(b[0]).min(c[0])).max(0);
+    let y0 = ceil(a[1].min(b[1]).min(c[1])).max(0);
+    let x1 = floor(a[0].max(b[0]).max(c[0])).min(width as i32 - 1);
+    let y1 = floor(a[1].max(b[1]).max(c[1])).min(height as i32 - 1);
+    if x1 < x0 || y1 < y0 {
+        return;
+    }
+    let (x0, y0, x1, y1) = (x0 as usize, y0 as usize, x1 as usize, y1 as usize);
+    // Barycentric weights of b and c, and the depth, as planes in (x, y).
+    let inv = 1.0 / area;
+    let (wb_x, wb_y) = ((c[1] - a[1]) * inv, -(c[0] - a[0]) * inv);
+    let (wc_x, wc_y) = (-(b[1] - a[1]) * inv, (b[0] - a[0]) * inv);
+    let (db, dc) = (b[2] - a[2], c[2] - a[2]);
+    let (d_x, d_y) = (wb_x * db + wc_x * dc, wb_y * db + wc_y * dc);
+    const EPS: f32 = -1e-4;
+    for y in y0..=y1 {
+        let (ry, rx) = (y as f32 - a[1], x0 as f32 - a[0]);
+        let mut wb = wb_x * rx + wb_y * ry;
+        let mut wc = wc_x * rx + wc_y * ry;
+        let mut d = a[2] + d_x * rx + d_y * ry;
+        let row = &mut depth[y * width..];
+        for cell in &mut row[x0..=x1] {
+            if wb >= EPS && wc >= EPS && wb + wc <= 1.0 - EPS && d > *cell {
+                *cell = d;
+            }
+            wb += wb_x;
+            wc += wc_x;
+            d += d_x;
         }
     }
 }
@@ -411,6 +449,72 @@ mod tests {
         let map = ShadowMap::new(Vec3::Z, &[(&nan, &[0, 1, 2])]);
         assert_eq!(map.lit(Vec3::ZERO, Vec3::Z), 1.0);
         assert_eq!(map.lit(Vec3::NAN, Vec3::Z), 1.0);
+    }
+
+    /// The map drawn in parallel runs (merged by the maximum) is the map drawn one vertex
+    /// and one triangle after the other, to the bit: two meshes of several runs each.
+    #[test]
+    fn parallel_map_equals_the_sequential_drawing() {
+        let grid = |n: usize, offset: Vec3| {
+            let mut positions = Vec::new();
+            for i in 0..=n {
+                for j in 0..=n {
+                    let (x, y) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5);
+                    let z = 0.2 * (7.0 * x).sin() * (5.0 * y).cos();
+                    positions.push(Vec3::new(x, y, z) * 0.3 + offset);
+                }
+            }
+            let mut indices = Vec::new();
+            for i in 0..n as u32 {
+                for j in 0..n as u32 {
+                    let a = i * (n as u32 + 1) + j;
+                    let b = a + n as u32 + 1;
+                    indices.extend_from_slice(&[a, b, a + 1, a + 1, b, b + 1]);
+                }
+            }
+            (positions, indices)
+        };
+        let (p1, i1) = grid(40, Vec3::ZERO);
+        let (p2, i2) = grid(30, Vec3::new(0.1, 0.05, 0.08));
+        let meshes = [
+            (p1.as_slice(), i1.as_slice()),
+            (p2.as_slice(), i2.as_slice()),
+        ];
+        assert!(i1.len() / 3 > 3 * 1024, "several runs per mesh");
+        let map = ShadowMap::new(Vec3::new(0.3, -0.2, 0.9).normalize(), &meshes);
+        let (w, h) = (map.width, map.height);
+        let mut depth = vec![f32::NEG_INFINITY; w * h];
+        let inv_cell = 1.0 / map.cell_m;
+        for (positions, indices) in meshes {
+            let q: Vec<[f32; 3]> = positions
+                .iter()
+                .map(|p| {
+                    let (pu, pv) = (p.dot(map.u), p.dot(map.v));
+                    [
+                        (pu - map.u0) * inv_cell - 0.5,
+                        (pv - map.v0) * inv_cell - 0.5,
+                        p.dot(map.toward_light),
+                    ]
+                })
+                .collect();
+            for p in &q {
+                let (x, y) = ((p[0] + 0.5) as usize, (p[1] + 0.5) as usize);
+                if x < w && y < h {
+                    depth[y * w + x] = depth[y * w + x].max(p[2]);
+                }
+            }
+            for t in indices.chunks_exact(3) {
+                let [a, b, c] = [0, 1, 2].map(|k| q[t[k] as usize]);
+                draw_triangle(&mut depth, w, h, [a, b, c]);
+            }
+        }
+        let drawn = depth.iter().filter(|d| d.is_finite()).count();
+        assert!(drawn > w * h / 4, "{drawn} of {} cells drawn", w * h);
+        let same = depth
+            .iter()
+            .zip(&map.depth)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "parallel map differs from the sequential drawing");
     }
 
     #[test]

@@ -94,21 +94,25 @@ pub(super) fn sun_on_primitives(
         .collect();
     let sun = crate::sun_fit::fit_sun(samples, toward, &lit)?;
     log::debug!("sun: {sun:?}");
-    sun_lit.extend(prims.iter().map(|p| {
-        let mut out = Vec::new();
-        (0..p.key_positions.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|i| {
-                let kp = p.key_positions[i];
-                let kn = p.key_normals.get(i).copied().unwrap_or_default();
-                let ap = p.anim_positions.get(i).copied().unwrap_or(kp);
-                let an = p.anim_normals.get(i).copied().unwrap_or_default();
-                [key_map.lit_vertex(kp, kn), anim_map.lit_vertex(ap, an)]
-            })
-            .collect_into_vec(&mut out);
-        out
-    }));
+    // Primitives in parallel too: many small props are many short lists.
+    prims
+        .par_iter()
+        .map(|p| {
+            let mut out = Vec::new();
+            (0..p.key_positions.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|i| {
+                    let kp = p.key_positions[i];
+                    let kn = p.key_normals.get(i).copied().unwrap_or_default();
+                    let ap = p.anim_positions.get(i).copied().unwrap_or(kp);
+                    let an = p.anim_normals.get(i).copied().unwrap_or_default();
+                    [key_map.lit_vertex(kp, kn), anim_map.lit_vertex(ap, an)]
+                })
+                .collect_into_vec(&mut out);
+            out
+        })
+        .collect_into_vec(sun_lit);
     Some(sun)
 }
 
