@@ -168,8 +168,6 @@ pub(crate) struct Vertex {
     pub(crate) uv: [f32; 2],
     /// Texture memory (premultiplied linear RGB, confidence); zero without.
     pub(crate) memory: [f32; 4],
-    /// Fraction of the sun received, `[key pose, animated pose]`.
-    pub(crate) sun_lit: [f32; 2],
 }
 
 /// Per-triangle data beside its set-up.
@@ -206,6 +204,8 @@ pub struct CpuRenderer {
     setups: Vec<Option<TriSetup>>,
     tris: Vec<Tri>,
     vertices: Vec<Vertex>,
+    /// Index in `vertices` of each twin mesh's first vertex.
+    mesh_bases: Vec<u32>,
     /// Camera-space positions of the key pose and their pixels.
     camera_positions: Vec<(Vec3, Option<[f64; 2]>)>,
     image: CpuTwinImage,
@@ -285,8 +285,9 @@ impl CpuRenderer {
     }
 
     /// Renders the animated twin: nearest surface per pixel, then one shading pass over the
-    /// covered pixels. With [`Shading::Live`] and `params.visibility`, the key depth of the
-    /// last [`CpuRenderer::render_key_depth`] (same camera) is the visibility map.
+    /// covered pixels ([`CpuRenderer::rasterise_twin_beside`], then
+    /// [`CpuRenderer::shade_twin`]). With [`Shading::Live`] and `params.visibility`, the key
+    /// depth of the last [`CpuRenderer::render_key_depth`] (same camera) is the visibility map.
     pub fn render_twin(
         &mut self,
         camera: &RasterCamera,
@@ -294,6 +295,107 @@ impl CpuRenderer {
         meshes: &[CpuLiveMesh<'_>],
         shading: &Shading<'_>,
     ) -> &CpuTwinImage {
+        let live = matches!(shading, Shading::Live { .. });
+        self.rasterise_twin_beside(camera, camera_from_world, meshes, live, |_| ());
+        self.shade_twin(meshes, shading)
+    }
+
+    /// The first half of [`CpuRenderer::render_twin`]: the animated twin's nearest surface
+    /// per pixel (`live`: the meshes' key poses are read, as [`Shading::Live`] needs; their
+    /// `sun_lit` is not). Meanwhile `beside` runs on the thread pool with the key depth of
+    /// the last [`CpuRenderer::render_key_depth`] (work the rasterisation does not wait for,
+    /// such as the set's light); its result is returned.
+    pub fn rasterise_twin_beside<R: Send>(
+        &mut self,
+        camera: &RasterCamera,
+        camera_from_world: Mat4,
+        meshes: &[CpuLiveMesh<'_>],
+        live: bool,
+        beside: impl FnOnce(&VisBuffer) -> R + Send,
+    ) -> R {
+        let twin = TwinBuffers {
+            twin: &mut self.twin,
+            setups: &mut self.setups,
+            tris: &mut self.tris,
+            vertices: &mut self.vertices,
+            mesh_bases: &mut self.mesh_bases,
+            image: &mut self.image,
+        };
+        let key = &self.key;
+        rayon::join(
+            || beside(key),
+            || twin.rasterise(camera, camera_from_world, meshes, live),
+        )
+        .0
+    }
+
+    /// The second half of [`CpuRenderer::render_twin`]: shades the covered pixels of the last
+    /// [`CpuRenderer::rasterise_twin_beside`], whose `meshes` these must be, in the same order
+    /// (now with their `sun_lit`; a triangle of a mesh missing here is left empty).
+    pub fn shade_twin(
+        &mut self,
+        meshes: &[CpuLiveMesh<'_>],
+        shading: &Shading<'_>,
+    ) -> &CpuTwinImage {
+        let Some(rect) = self.twin.dirty else {
+            return &self.image;
+        };
+        self.image.rect = Some(rect);
+        let ctx = ShadeContext {
+            setups: &self.setups,
+            tris: &self.tris,
+            vertices: &self.vertices,
+            mesh_bases: &self.mesh_bases,
+            meshes,
+            shading,
+            key: &self.key,
+            lut: decode_lut(),
+            encoder: Encoder::new(),
+        };
+        let wu = self.image.width as usize;
+        let start = rect.y0 as usize * wu;
+        let end = (rect.y1 as usize + 1) * wu;
+        let ids = &self.twin.id[start..end];
+        self.image.rgba8[start * 4..end * 4]
+            .par_chunks_mut(wu * 4)
+            .zip(self.image.codes[start..end].par_chunks_mut(wu))
+            .zip(ids.par_chunks(wu))
+            .enumerate()
+            .for_each(|(k, ((rgba, codes), ids))| {
+                let y = rect.y0 + k as u32;
+                for x in rect.x0..=rect.x1 {
+                    let id = ids[x as usize];
+                    if id == NO_TRIANGLE {
+                        continue;
+                    }
+                    let (c, px) = ctx.shade(id, x, y);
+                    rgba[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&px);
+                    codes[x as usize] = c;
+                }
+            });
+        &self.image
+    }
+}
+
+/// The animated twin's buffers, borrowed apart from the key depth.
+struct TwinBuffers<'a> {
+    twin: &'a mut VisBuffer,
+    setups: &'a mut Vec<Option<TriSetup>>,
+    tris: &'a mut Vec<Tri>,
+    vertices: &'a mut Vec<Vertex>,
+    mesh_bases: &'a mut Vec<u32>,
+    image: &'a mut CpuTwinImage,
+}
+
+impl TwinBuffers<'_> {
+    /// Vertices, triangle set-ups and the nearest surface per pixel.
+    fn rasterise(
+        self,
+        camera: &RasterCamera,
+        camera_from_world: Mat4,
+        meshes: &[CpuLiveMesh<'_>],
+        live: bool,
+    ) {
         let (w, h) = (camera.width, camera.height);
         self.twin.reset(w, h);
         self.image.reset(w, h);
@@ -302,12 +404,13 @@ impl CpuRenderer {
         self.setups.resize(total, None);
         self.tris.resize_with(total, Tri::default);
         self.vertices.clear();
+        self.mesh_bases.clear();
         let mut offset = 0;
         let rotation = Mat3::from_mat4(camera_from_world);
-        let live = matches!(shading, Shading::Live { .. });
         for (mi, m) in meshes.iter().enumerate() {
             let mesh = &m.mesh;
             let base = self.vertices.len() as u32;
+            self.mesh_bases.push(base);
             let n = mesh.positions_world.len();
             let has_key = live && m.key_positions_world.len() == n;
             let vertex = |i: usize| {
@@ -332,12 +435,11 @@ impl CpuRenderer {
                     key_normal_world: kn,
                     uv: mesh.uvs.get(i).copied().unwrap_or([0.0; 2]),
                     memory: m.memory.get(i).copied().unwrap_or([0.0; 4]),
-                    sun_lit: m.sun_lit.get(i).copied().unwrap_or([1.0; 2]),
                 }
             };
             self.vertices
                 .par_extend((0..n).into_par_iter().with_min_len(1024).map(vertex));
-            let vertices = &self.vertices;
+            let vertices = &*self.vertices;
             let keep_ccw = mesh.keep_ccw();
             // Set-ups in parallel, one slot per triangle (ties in the depth test keep the
             // first triangle, as on the GPU).
@@ -367,42 +469,63 @@ impl CpuRenderer {
                 .for_each(|((tri, slot), t)| set_up(tri, slot, t));
             offset += count;
         }
-        self.twin.draw(camera, &self.setups, 0);
-        let Some(rect) = self.twin.dirty else {
-            return &self.image;
+        self.twin.draw(camera, self.setups, 0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The two halves of `render_twin`: `beside` sees the key depth and its result comes
+    /// back; shading the same meshes gives `render_twin`'s image, shading without them (a
+    /// caller's mistake) leaves the twin empty instead of panicking.
+    #[test]
+    fn rasterise_beside_then_shade_equals_render_twin() {
+        let k = pa_camera::Intrinsics {
+            fx: 60.0,
+            fy: 60.0,
+            cx: 31.5,
+            cy: 23.5,
+            width: 64,
+            height: 48,
         };
-        self.image.rect = Some(rect);
-        let ctx = ShadeContext {
-            setups: &self.setups,
-            tris: &self.tris,
-            vertices: &self.vertices,
-            meshes,
-            shading,
-            key: &self.key,
-            lut: decode_lut(),
-            encoder: Encoder::new(),
+        let camera = RasterCamera::new(&k, 0.01, 10.0);
+        let positions = [
+            Vec3::new(-0.3, -0.3, 1.0),
+            Vec3::new(0.3, -0.3, 1.0),
+            Vec3::new(0.0, 0.3, 1.0),
+        ];
+        let mesh = CpuPosedMesh {
+            positions_world: &positions,
+            normals_world: &[],
+            uvs: &[],
+            indices: &[0, 1, 2],
+            albedo: None,
+            base_color_factor: [0.5, 0.25, 1.0, 1.0],
+            mirrored: false,
+            cull_back_faces: false,
         };
-        let wu = w as usize;
-        let start = rect.y0 as usize * wu;
-        let end = (rect.y1 as usize + 1) * wu;
-        let ids = &self.twin.id[start..end];
-        self.image.rgba8[start * 4..end * 4]
-            .par_chunks_mut(wu * 4)
-            .zip(self.image.codes[start..end].par_chunks_mut(wu))
-            .zip(ids.par_chunks(wu))
-            .enumerate()
-            .for_each(|(k, ((rgba, codes), ids))| {
-                let y = rect.y0 + k as u32;
-                for x in rect.x0..=rect.x1 {
-                    let id = ids[x as usize];
-                    if id == NO_TRIANGLE {
-                        continue;
-                    }
-                    let (c, px) = ctx.shade(id, x, y);
-                    rgba[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&px);
-                    codes[x as usize] = c;
-                }
-            });
-        &self.image
+        let meshes = [CpuLiveMesh {
+            mesh,
+            key_positions_world: &[],
+            key_normals_world: &[],
+            memory: &[],
+            sun_lit: &[],
+        }];
+        let mut one = CpuRenderer::new();
+        let whole = one
+            .render_twin(&camera, Mat4::IDENTITY, &meshes, &Shading::Albedo)
+            .clone();
+        assert!(whole.rgba8.chunks(4).filter(|p| p[3] == 255).count() > 300);
+        let mut two = CpuRenderer::new();
+        let seen =
+            two.rasterise_twin_beside(&camera, Mat4::IDENTITY, &meshes, false, |key| key.width);
+        assert_eq!(seen, 0, "no key depth rendered yet");
+        assert_eq!(two.shade_twin(&meshes, &Shading::Albedo).rgba8, whole.rgba8);
+        let mut three = CpuRenderer::new();
+        three.rasterise_twin_beside(&camera, Mat4::IDENTITY, &meshes, false, |_| ());
+        let empty = three.shade_twin(&[], &Shading::Albedo);
+        assert!(empty.rgba8.iter().all(|&v| v == 0));
     }
 }

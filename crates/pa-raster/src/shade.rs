@@ -67,6 +67,8 @@ pub(crate) struct ShadeContext<'a> {
     pub setups: &'a [Option<TriSetup>],
     pub tris: &'a [Tri],
     pub vertices: &'a [Vertex],
+    /// Index in `vertices` of each mesh's first vertex.
+    pub mesh_bases: &'a [u32],
     pub meshes: &'a [CpuLiveMesh<'a>],
     pub shading: &'a Shading<'a>,
     pub key: &'a VisBuffer,
@@ -123,7 +125,7 @@ impl ShadeContext<'_> {
             t,
             v,
             b: s.hit(x as f32, y as f32).b,
-            mesh: &self.meshes[t.mesh as usize].mesh,
+            mesh: &self.meshes.get(t.mesh as usize)?.mesh,
         })
     }
 
@@ -144,6 +146,22 @@ impl ShadeContext<'_> {
             None => [1.0; 4],
         };
         std::array::from_fn(|c| texel[c] * mesh.base_color_factor[c])
+    }
+
+    /// The fraction of the sun the fragment receives, `[key pose, animated pose]`, from its
+    /// mesh's [`CpuLiveMesh::sun_lit`] (fully lit where missing).
+    #[inline]
+    fn sun_lit(&self, f: &Fragment<'_>) -> [f32; 2] {
+        let m = f.t.mesh as usize;
+        let (Some(mesh), Some(&base)) = (self.meshes.get(m), self.mesh_bases.get(m)) else {
+            return [1.0; 2];
+        };
+        let at = |k: usize| {
+            let i = f.t.v[k].wrapping_sub(base) as usize;
+            mesh.sun_lit.get(i).copied().unwrap_or([1.0; 2])
+        };
+        let ([a, b, c], [b0, b1, b2]) = ([at(0), at(1), at(2)], f.b);
+        std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
     }
 
     /// sRGB RGBA8 of a linear colour and alpha.
@@ -209,7 +227,7 @@ impl ShadeContext<'_> {
                 n
             };
             let lit: [f32; 2] = match params.sun {
-                Some(_) => f.lerp(|v| v.sun_lit),
+                Some(_) => self.sun_lit(f),
                 None => [1.0; 2],
             };
             (n, lit)

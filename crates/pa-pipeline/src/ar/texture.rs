@@ -472,67 +472,7 @@ impl ArPipeline {
             let placements: Vec<Mat4> = props.iter().map(|p| p.marker_from_prop).collect();
             self.memory.observe(cpu, &placements, &view)?;
         }
-        let shading = match self.settings.texturing {
-            Texturing::ModelTexture => pa_raster::Shading::Albedo,
-            Texturing::Live { visibility } => {
-                if visibility {
-                    let key_view = KeyView {
-                        camera: &camera_model,
-                        camera_from_world: camera_from_marker,
-                        frame_rgba8: rgba8,
-                        key_depth: KeyDepth::InverseMetres(&cpu.renderer.key_depth().inv_z),
-                        width,
-                        height,
-                    };
-                    let (light, samples) = key_light(twins.iter().zip(props), |(tw, p), n| {
-                        // Posed in the marker frame already: the world is the model's.
-                        let posed = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
-                            (
-                                tp.mesh,
-                                tp.primitive,
-                                k.positions_world.as_slice(),
-                                k.normals_world.as_slice(),
-                            )
-                        });
-                        irradiance_samples_from(&p.model, posed, Mat4::IDENTITY, &key_view, n)
-                    });
-                    params.fallback_irradiance = light.rows;
-                    params.visibility = true;
-                    params.min_facing_cos = VISIBLE_MIN_FACING_COS;
-                    params.max_stretch = MAX_STRETCH;
-                    params.relight = self.settings.look.relight;
-                    params.feather = self.settings.look.feather;
-                    if params.relight && self.settings.look.sun {
-                        let prims: Vec<SunPrimitive<'_>> = twins
-                            .iter()
-                            .zip(props)
-                            .flat_map(|(tw, p)| {
-                                tw.primitives.iter().zip(tw.key.iter().zip(&tw.anim)).map(
-                                    |(tp, (k, a))| SunPrimitive {
-                                        key_positions: &k.positions_world,
-                                        key_normals: &k.normals_world,
-                                        anim_positions: &a.positions_world,
-                                        anim_normals: &a.normals_world,
-                                        shadow: &p.shadow_meshes[tp.mesh][tp.primitive],
-                                    },
-                                )
-                            })
-                            .collect();
-                        params.sun = sun_on_primitives(
-                            &light,
-                            &samples,
-                            known_sun,
-                            &mut self.sun_track,
-                            &prims,
-                            &mut cpu.sun_lit,
-                        );
-                    } else {
-                        cpu.sun_lit.clear();
-                    }
-                }
-                pa_raster::Shading::Live { frame, params }
-            }
-        };
+        let twins = &cpu.twins;
         let mut meshes: Vec<_> = twins
             .iter()
             .zip(props)
@@ -543,12 +483,84 @@ impl ArPipeline {
                 m.memory = a;
             }
         }
+        // The set's light (ours) is fitted on the key depth while the twin is rasterised:
+        // neither waits for the other.
+        let settings = self.settings;
+        let light_on_key = matches!(settings.texturing, Texturing::Live { visibility: true });
+        let live = matches!(settings.texturing, Texturing::Live { .. });
+        let (sun_track, sun_lit) = (&mut self.sun_track, &mut cpu.sun_lit);
+        let fitted = cpu.renderer.rasterise_twin_beside(
+            &camera,
+            camera_from_marker,
+            &meshes,
+            live,
+            |key_depth| {
+                sun_lit.clear();
+                if !light_on_key {
+                    return None;
+                }
+                let key_view = KeyView {
+                    camera: &camera_model,
+                    camera_from_world: camera_from_marker,
+                    frame_rgba8: rgba8,
+                    key_depth: KeyDepth::InverseMetres(&key_depth.inv_z),
+                    width,
+                    height,
+                };
+                let (light, samples) = key_light(twins.iter().zip(props), |(tw, p), n| {
+                    // Posed in the marker frame already: the world is the model's.
+                    let posed = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
+                        (
+                            tp.mesh,
+                            tp.primitive,
+                            k.positions_world.as_slice(),
+                            k.normals_world.as_slice(),
+                        )
+                    });
+                    irradiance_samples_from(&p.model, posed, Mat4::IDENTITY, &key_view, n)
+                });
+                let sun = if settings.look.relight && settings.look.sun {
+                    let prims: Vec<SunPrimitive<'_>> = twins
+                        .iter()
+                        .zip(props)
+                        .flat_map(|(tw, p)| {
+                            tw.primitives.iter().zip(tw.key.iter().zip(&tw.anim)).map(
+                                |(tp, (k, a))| SunPrimitive {
+                                    key_positions: &k.positions_world,
+                                    key_normals: &k.normals_world,
+                                    anim_positions: &a.positions_world,
+                                    anim_normals: &a.normals_world,
+                                    shadow: &p.shadow_meshes[tp.mesh][tp.primitive],
+                                },
+                            )
+                        })
+                        .collect();
+                    sun_on_primitives(&light, &samples, known_sun, sun_track, &prims, sun_lit)
+                } else {
+                    None
+                };
+                Some((light, sun))
+            },
+        );
+        let shading = match settings.texturing {
+            Texturing::ModelTexture => pa_raster::Shading::Albedo,
+            Texturing::Live { .. } => {
+                if let Some((light, sun)) = fitted {
+                    params.fallback_irradiance = light.rows;
+                    params.visibility = true;
+                    params.min_facing_cos = VISIBLE_MIN_FACING_COS;
+                    params.max_stretch = MAX_STRETCH;
+                    params.relight = settings.look.relight;
+                    params.feather = settings.look.feather;
+                    params.sun = sun;
+                }
+                pa_raster::Shading::Live { frame, params }
+            }
+        };
         for (m, lit) in meshes.iter_mut().zip(&cpu.sun_lit) {
             m.sun_lit = lit;
         }
-        let image = cpu
-            .renderer
-            .render_twin(&camera, camera_from_marker, &meshes, &shading);
+        let image = cpu.renderer.shade_twin(&meshes, &shading);
         let live_counts = image.counts();
         let live_codes = image.codes.clone();
         // Lent to the composite, given back after it (see render_frame).
