@@ -30,6 +30,7 @@
 //! known, blending into the model's lit texture where it is not.
 
 use glam::{Mat3, Mat4, Vec3};
+use rayon::prelude::*;
 
 use crate::live::{code, live_lookup, InvDepthMap, LiveParams};
 use crate::texture::FrameSampler;
@@ -169,7 +170,7 @@ impl VertexMemory {
     pub fn observe(
         &mut self,
         params: &LiveParams,
-        key_depth: &impl InvDepthMap,
+        key_depth: &(impl InvDepthMap + Sync),
         frame: &FrameSampler<'_>,
         camera_from_world: Mat4,
         positions_world: &[Vec3],
@@ -185,12 +186,14 @@ impl VertexMemory {
         p.min_facing_cos = p.min_facing_cos.max(MIN_SAMPLE_COS);
         let rotation = Mat3::from_mat4(camera_from_world);
         let cam = p.frame_camera;
-        for (i, (&pw, &nw)) in positions_world.iter().zip(normals_world).enumerate() {
+        // Each vertex's sample (the look-up and the frame: read-only, in parallel), then
+        // added in vertex order.
+        let sample = |(&pw, &nw): (&Vec3, &Vec3)| -> Option<([f32; 3], f32)> {
             let pc = camera_from_world.transform_point3(pw);
             let nc = rotation * nw;
             let (c, pixel) = live_lookup(&p, key_depth, pc, nc, pc, nc);
             if c != code::VALID {
-                continue;
+                return None;
             }
             let cos = {
                 let len2 = nc.dot(nc) * pc.dot(pc);
@@ -207,7 +210,19 @@ impl VertexMemory {
                 1.0
             };
             let w = cos * resolution * margin;
-            let rgb = frame.sample_linear(pixel[0], pixel[1], lut);
+            Some((frame.sample_linear(pixel[0], pixel[1], lut), w))
+        };
+        let mut samples = Vec::new();
+        positions_world
+            .par_iter()
+            .zip(normals_world.par_iter())
+            .with_min_len(1024)
+            .map(sample)
+            .collect_into_vec(&mut samples);
+        for (i, s) in samples.into_iter().enumerate() {
+            let Some((rgb, w)) = s else {
+                continue;
+            };
             counts.sampled += 1;
             if self.add_sample(i, rgb, w) {
                 counts.outliers += 1;
