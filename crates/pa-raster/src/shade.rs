@@ -77,7 +77,6 @@ pub(crate) struct ShadeContext<'a> {
 }
 
 /// One covered pixel: its triangle, vertices and perspective-correct barycentrics.
-#[derive(Clone, Copy)]
 struct Fragment<'a> {
     s: &'a TriSetup,
     t: &'a Tri,

@@ -135,17 +135,6 @@ impl ShadowMap {
         let (u0, v0) = (umin - cell_m, vmin - cell_m);
         let width = ((umax - u0) / cell_m) as usize + 2;
         let height = ((vmax - v0) / cell_m) as usize + 2;
-        let mut map = Self {
-            toward_light: l,
-            u,
-            v,
-            u0,
-            v0,
-            cell_m,
-            width,
-            height,
-            depth: vec![f32::NEG_INFINITY; width * height],
-        };
         let inv_cell = 1.0 / cell_m;
         for q in projected.iter_mut() {
             for p in q.iter_mut() {
@@ -198,16 +187,27 @@ impl ShadowMap {
             }
             depth
         };
-        let merged = tasks.par_iter().fold(empty, draw).reduce_with(|mut a, b| {
-            for (x, y) in a.iter_mut().zip(&b) {
-                *x = x.max(*y);
-            }
-            a
-        });
-        if let Some(depth) = merged {
-            map.depth = depth;
+        let depth = tasks
+            .par_iter()
+            .fold(empty, draw)
+            .reduce_with(|mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    *x = x.max(*y);
+                }
+                a
+            })
+            .unwrap_or_else(empty);
+        Self {
+            toward_light: l,
+            u,
+            v,
+            u0,
+            v0,
+            cell_m,
+            width,
+            height,
+            depth,
         }
-        map
     }
 
     /// Cell coordinates (continuous, cell centres at integers) and depth of a world point.

@@ -472,7 +472,6 @@ impl ArPipeline {
             let placements: Vec<Mat4> = props.iter().map(|p| p.marker_from_prop).collect();
             self.memory.observe(cpu, &placements, &view)?;
         }
-        let twins = &cpu.twins;
         let mut meshes: Vec<_> = twins
             .iter()
             .zip(props)
