@@ -1,6 +1,7 @@
 //! Defined behaviour of the frame pipeline on awkward input: tracking lost mid-shot (the output
 //! is the untouched input, state reported), a prop entirely outside the frame (nothing drawn,
-//! nothing filled), and a frame of the wrong size (a typed error naming the sizes).
+//! nothing filled), a frame of the wrong size (a typed error naming the sizes), and an image
+//! handed back for reuse (written over, whatever it held).
 
 use glam::Vec3;
 use pa_pipeline::ar::{ArError, ArSettings, FrameTimes};
@@ -123,4 +124,45 @@ fn wrong_frame_size_is_a_typed_error() {
         msg.contains("320x180") && msg.contains("230400") && msg.contains("100"),
         "{msg}"
     );
+}
+
+#[test]
+fn a_recycled_image_is_written_over_and_changes_no_frame() {
+    let Some((mut renderer, scene)) = setup() else {
+        return;
+    };
+    let settings = ArSettings::ours();
+    let mut plain = pipeline_for(&scene, &mut renderer, settings).expect("pipeline");
+    let mut recycling = pipeline_for(&scene, &mut renderer, settings).expect("pipeline");
+    // A stale image of garbage, a buffer too small and one too large, then the first frame's
+    // own image: none of what they held may show.
+    let mut spare = vec![
+        vec![0xA5u8; 320 * 180 * 4],
+        vec![7u8; 12],
+        vec![9u8; 400 * 300 * 4],
+    ];
+    for i in 0..4u32 {
+        let f = scene.frame(&mut renderer, i).expect("frame");
+        let run = |p: &mut pa_pipeline::ar::ArPipeline, r: &mut Renderer| {
+            pa_scene::eval::process_at_true_pose(p, r, &f).expect("process")
+        };
+        let want = run(&mut plain, &mut renderer);
+        let handed_back = spare.remove(0);
+        let address = handed_back.as_ptr();
+        let reusable = handed_back.capacity() >= 320 * 180 * 4;
+        recycling.recycle(handed_back);
+        let got = run(&mut recycling, &mut renderer);
+        assert!(
+            got.rgba8 == want.rgba8,
+            "frame {i}: the recycled buffer changed the image"
+        );
+        if reusable {
+            assert_eq!(
+                got.rgba8.as_ptr(),
+                address,
+                "frame {i}: the buffer was not reused"
+            );
+        }
+        spare.push(got.rgba8);
+    }
 }

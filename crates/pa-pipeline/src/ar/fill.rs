@@ -35,7 +35,11 @@ impl ArPipeline {
             ..
         } = textured;
         let (key_bbox, twin_bbox) = (*key_bbox, *twin_bbox);
-        let mut background = ImageRgba8::new(width, height, rgba8.to_vec())?;
+        // The frame's copy, in the buffer of a recycled frame where there is one.
+        let mut copy = std::mem::take(&mut self.spare_rgba8);
+        copy.clear();
+        copy.extend_from_slice(rgba8);
+        let mut background = ImageRgba8::new(width, height, copy)?;
         let fill_mask = match &mut self.fill_mask {
             Some((m, last)) if m.size() == (width, height) => {
                 if let Some(r) = last.take() {

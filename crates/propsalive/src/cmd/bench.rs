@@ -393,6 +393,7 @@ fn run_frame(
     if !tracked {
         // Lost: render at the true pose so that every stage is still timed.
         let track_ms = out.timings.track_ms;
+        pipe.recycle(std::mem::take(&mut out.rgba8));
         out = pipe.process_with_pose(
             renderer,
             &f.input.rgba8,
@@ -484,7 +485,8 @@ fn run_config(
 
     bar.set_message("warming up");
     for f in &frames[..plan.warmup as usize] {
-        run_frame(&mut pipe, renderer, &scene, f)?;
+        let (out, _) = run_frame(&mut pipe, renderer, &scene, f)?;
+        pipe.recycle(out.rgba8);
         bar.inc(1);
     }
 
@@ -496,11 +498,22 @@ fn run_config(
     } else {
         "process"
     };
+    // Where the timed loop keeps its outputs, touched before it (a copy of each input).
+    let mut held_images = frames[plan.warmup as usize..]
+        .iter()
+        .map(|f| f.input.rgba8.clone())
+        .collect::<Vec<_>>()
+        .into_iter();
     let mut samples = Vec::with_capacity(plan.frames as usize);
     let mut outputs = Vec::with_capacity(plan.frames as usize);
     for f in &frames[plan.warmup as usize..] {
         let (mut out, sample) = run_frame(&mut pipe, renderer, &scene, f)?;
-        // Keep what the measurement needs (the image and the pose), drop the masks.
+        // Keep what the measurement needs (a copy of the image, and the pose), drop the
+        // masks, and hand the image back as a live loop that shows it would.
+        if let Some(mut image) = held_images.next() {
+            image.copy_from_slice(&out.rgba8);
+            pipe.recycle(std::mem::replace(&mut out.rgba8, image));
+        }
         out.twin_mask = Vec::new();
         out.key_mask = Vec::new();
         out.live_codes = Vec::new();

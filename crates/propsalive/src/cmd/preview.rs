@@ -500,7 +500,7 @@ impl Preview {
         if frame.starts_sequence {
             self.pipeline.reset_tracker();
         }
-        let out = self.pipeline.process(
+        let mut out = self.pipeline.process(
             &mut self.renderer,
             &frame.rgba8,
             frame.width,
@@ -521,7 +521,7 @@ impl Preview {
         let composited = Image {
             width: frame.width,
             height: frame.height,
-            rgba8: out.rgba8.clone(),
+            rgba8: std::mem::take(&mut out.rgba8),
         };
         let mut view = composited.clone();
         self.overlay(&out, &mut view)?;
@@ -582,7 +582,10 @@ impl Preview {
         if let Some(dir) = self.dump_dir.clone() {
             dump_presented(&dir, &canvas, presented, window, index, frame.height, last)?;
         }
-        self.shown = Some(Shown { composited, canvas });
+        // The frame shown before hands its image back to the pipeline (no fresh buffer).
+        if let Some(old) = self.shown.replace(Shown { composited, canvas }) {
+            self.pipeline.recycle(old.composited.rgba8);
+        }
         self.state.advance();
         Ok(true)
     }
