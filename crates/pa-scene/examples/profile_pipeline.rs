@@ -65,6 +65,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )
             .map_err(|e| e.to_string())?;
         let s = out.timings;
+        p.recycle(out.rgba8);
         t.push([
             s.track_ms,
             s.animate_ms,
