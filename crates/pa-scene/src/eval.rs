@@ -335,6 +335,8 @@ pub fn run_scene_setup<E: From<SceneError>>(
         );
         each(&f, &out, &m, &revealed)?;
         all.push(m);
+        // Written and measured: the image is the next frame's buffer.
+        pipeline.recycle(out.rgba8);
     }
     Ok(all)
 }
