@@ -27,6 +27,7 @@
 
 pub mod error;
 pub mod live;
+pub mod live_lanes;
 pub mod look;
 pub mod memory;
 pub mod mesh;

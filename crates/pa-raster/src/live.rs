@@ -138,7 +138,7 @@ impl LiveParams {
 
 /// Cosine between a normal and the direction from the point to the camera (at the origin).
 #[inline(always)]
-fn facing_cos(p: Vec3, n: Vec3) -> f32 {
+pub(crate) fn facing_cos(p: Vec3, n: Vec3) -> f32 {
     let len2 = n.dot(n) * p.dot(p);
     if len2 > 0.0 {
         -n.dot(p) / len2.sqrt()
@@ -194,9 +194,7 @@ pub fn live_lookup_weighted(
     pa: Vec3,
     na: Vec3,
 ) -> (u8, [f32; 2], f32) {
-    use crate::look::{
-        ramp, EDGE_FEATHER_PX, FACING_FEATHER_COS, FULL_WEIGHT_MIN, STRETCH_FEATHER,
-    };
+    use crate::look::{ramp, EDGE_FEATHER_PX, FACING_FEATHER_COS, STRETCH_FEATHER};
     let cam = &p.frame_camera;
     // (Written so that NaN fails every test.)
     let in_front = pc.z > 1e-6;
@@ -239,6 +237,24 @@ pub fn live_lookup_weighted(
             weight *= ramp(limit - cos_anim, STRETCH_FEATHER * limit);
         }
     }
+    visible_weight(p, key_depth, (x, y), pc.z, pixel, weight)
+}
+
+/// The end of [`live_lookup_weighted`] for a sample that passed the frame, facing and stretch
+/// tests: the visibility test against the key depth at the pinhole projection `(x, y)` (the
+/// normalised coordinates) of a point at depth `z`, and the weight's last factor. Shared with
+/// the four-lane look-up ([`crate::live_lanes`]).
+#[inline(always)]
+pub(crate) fn visible_weight(
+    p: &LiveParams,
+    key_depth: &impl InvDepthMap,
+    (x, y): (f32, f32),
+    z: f32,
+    pixel: [f32; 2],
+    mut weight: f32,
+) -> (u8, [f32; 2], f32) {
+    use crate::look::{ramp, FULL_WEIGHT_MIN};
+    let cam = &p.frame_camera;
     if p.visibility {
         // Pinhole projection into the map (rasterised without distortion).
         let q = [cam.fx * x + cam.cx, cam.fy * y + cam.cy];
@@ -259,11 +275,11 @@ pub fn live_lookup_weighted(
             }
         }
         let tolerance = p.depth_tolerance_rel + p.depth_tolerance_m * inv_z;
-        if pc.z * inv_z > 1.0 + tolerance {
+        if z * inv_z > 1.0 + tolerance {
             return (code::OCCLUDED, pixel, 0.0);
         }
         if p.feather && inv_z > 0.0 {
-            weight *= ramp(1.0 + tolerance - pc.z * inv_z, tolerance);
+            weight *= ramp(1.0 + tolerance - z * inv_z, tolerance);
         }
     }
     let weight = if weight >= FULL_WEIGHT_MIN {

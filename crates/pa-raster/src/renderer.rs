@@ -19,7 +19,7 @@ use glam::{Mat3, Mat4, Vec3};
 use rayon::prelude::*;
 
 use crate::live::{code, LiveParams};
-use crate::raster::{PixelRect, RasterCamera, TriSetup, VisBuffer, NO_TRIANGLE};
+use crate::raster::{PixelRect, RasterCamera, TriSetup, VisBuffer};
 use crate::shade::ShadeContext;
 use crate::srgb::{decode_lut, Encoder};
 use crate::texture::{CpuMipTexture, FrameSampler};
@@ -362,16 +362,7 @@ impl CpuRenderer {
             .zip(ids.par_chunks(wu))
             .enumerate()
             .for_each(|(k, ((rgba, codes), ids))| {
-                let y = rect.y0 + k as u32;
-                for x in rect.x0..=rect.x1 {
-                    let id = ids[x as usize];
-                    if id == NO_TRIANGLE {
-                        continue;
-                    }
-                    let (c, px) = ctx.shade(id, x, y);
-                    rgba[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&px);
-                    codes[x as usize] = c;
-                }
+                ctx.shade_row(rect.y0 + k as u32, (rect.x0, rect.x1), ids, rgba, codes);
             });
         &self.image
     }

@@ -12,8 +12,9 @@ use std::sync::atomic::Ordering;
 use glam::Vec3;
 
 use crate::live::{code, live_lookup_weighted};
+use crate::live_lanes::{live_lookup_weighted4, LookupInputs};
 use crate::look;
-use crate::raster::{TriSetup, VisBuffer};
+use crate::raster::{TriSetup, VisBuffer, NO_TRIANGLE};
 use crate::renderer::{CpuLiveMesh, CpuPosedMesh, Shading, Tri, Vertex, LOD_UNSET};
 use crate::srgb::Encoder;
 use crate::texture::FrameSampler;
@@ -187,6 +188,71 @@ impl ShadeContext<'_> {
                 let (code, pixel, weight) = live_lookup_weighted(params, self.key, pc, nc, pa, na);
                 let (rgb, a) = self.live_colour(&f, frame, params, code, pixel, weight);
                 (code, self.encode(rgb, a))
+            }
+        }
+    }
+
+    /// Shades the covered pixels of row `y` (`ids` the row's surface ids, columns `x0..=x1`)
+    /// into the row's `rgba` and `codes`, exactly as [`ShadeContext::shade`] pixel by pixel.
+    /// With [`Shading::Live`], four covered pixels at a time share one four-lane look-up
+    /// ([`live_lookup_weighted4`]); the row's last one to three pixels are looked up alone.
+    pub fn shade_row(
+        &self,
+        y: u32,
+        (x0, x1): (u32, u32),
+        ids: &[u32],
+        rgba: &mut [u8],
+        codes: &mut [u8],
+    ) {
+        let mut put = |x: u32, (c, px): (u8, [u8; 4])| {
+            rgba[x as usize * 4..x as usize * 4 + 4].copy_from_slice(&px);
+            codes[x as usize] = c;
+        };
+        let Shading::Live { frame, params } = self.shading else {
+            for x in x0..=x1 {
+                let id = ids[x as usize];
+                if id != NO_TRIANGLE {
+                    put(x, self.shade(id, x, y));
+                }
+            }
+            return;
+        };
+        let mut group: [(u32, Option<Fragment<'_>>); 4] =
+            [(0, None), (0, None), (0, None), (0, None)];
+        let mut n = 0;
+        for x in x0..=x1 {
+            let id = ids[x as usize];
+            if id == NO_TRIANGLE {
+                continue;
+            }
+            let Some(f) = self.fragment(id, x, y) else {
+                put(x, (code::NONE, [0; 4]));
+                continue;
+            };
+            group[n] = (x, Some(f));
+            n += 1;
+            if n < 4 {
+                continue;
+            }
+            n = 0;
+            let inputs: [LookupInputs; 4] = std::array::from_fn(|l| match &group[l].1 {
+                Some(f) => f.lookup_inputs(),
+                None => [Vec3::ZERO; 4],
+            });
+            let looked = live_lookup_weighted4(params, self.key, &inputs);
+            for ((x, f), (code, pixel, weight)) in group.iter().zip(looked) {
+                if let Some(f) = f {
+                    let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
+                    put(*x, (code, self.encode(rgb, a)));
+                }
+            }
+        }
+        for (x, f) in &group[..n] {
+            if let Some(f) = f {
+                let [pc, nc, pa, na] = f.lookup_inputs();
+                let (code, pixel, weight) = live_lookup_weighted(params, self.key, pc, nc, pa, na);
+                let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
+                put(*x, (code, self.encode(rgb, a)));
             }
         }
     }
