@@ -185,11 +185,24 @@ impl ShadeContext<'_> {
             }
             Shading::Live { frame, params } => {
                 let [pc, nc, pa, na] = f.lookup_inputs();
-                let (code, pixel, weight) = live_lookup_weighted(params, self.key, pc, nc, pa, na);
-                let (rgb, a) = self.live_colour(&f, frame, params, code, pixel, weight);
-                (code, self.encode(rgb, a))
+                let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
+                self.live_pixel(&f, frame, params, looked)
             }
         }
+    }
+
+    /// The code and sRGB RGBA8 of a live-textured fragment given its look-up
+    /// `(code, frame pixel, weight)`.
+    #[inline(always)]
+    fn live_pixel(
+        &self,
+        f: &Fragment<'_>,
+        frame: &FrameSampler<'_>,
+        params: &LiveParams,
+        (code, pixel, weight): (u8, [f32; 2], f32),
+    ) -> (u8, [u8; 4]) {
+        let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
+        (code, self.encode(rgb, a))
     }
 
     /// Shades the covered pixels of row `y` (`ids` the row's surface ids, columns `x0..=x1`)
@@ -217,6 +230,9 @@ impl ShadeContext<'_> {
             }
             return;
         };
+        // Up to four fragments waiting for their look-up. (`None` is only the array's first
+        // value: a full group holds four; this layout measured faster than an
+        // `Option<(u32, Fragment)>` per slot.)
         let mut group: [(u32, Option<Fragment<'_>>); 4] =
             [(0, None), (0, None), (0, None), (0, None)];
         let mut n = 0;
@@ -240,19 +256,17 @@ impl ShadeContext<'_> {
                 None => [Vec3::ZERO; 4],
             });
             let looked = live_lookup_weighted4(params, self.key, &inputs);
-            for ((x, f), (code, pixel, weight)) in group.iter().zip(looked) {
+            for ((x, f), looked) in group.iter().zip(looked) {
                 if let Some(f) = f {
-                    let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
-                    put(*x, (code, self.encode(rgb, a)));
+                    put(*x, self.live_pixel(f, frame, params, looked));
                 }
             }
         }
         for (x, f) in &group[..n] {
             if let Some(f) = f {
                 let [pc, nc, pa, na] = f.lookup_inputs();
-                let (code, pixel, weight) = live_lookup_weighted(params, self.key, pc, nc, pa, na);
-                let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
-                put(*x, (code, self.encode(rgb, a)));
+                let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
+                put(*x, self.live_pixel(f, frame, params, looked));
             }
         }
     }

@@ -35,11 +35,7 @@ impl ArPipeline {
             ..
         } = textured;
         let (key_bbox, twin_bbox) = (*key_bbox, *twin_bbox);
-        // The frame's copy, in the buffer of a recycled frame where there is one.
-        let mut copy = std::mem::take(&mut self.spare_rgba8);
-        copy.clear();
-        copy.extend_from_slice(rgba8);
-        let mut background = ImageRgba8::new(width, height, copy)?;
+        let mut background = ImageRgba8::new(width, height, self.copy_of(rgba8))?;
         let fill_mask = match &mut self.fill_mask {
             Some((m, last)) if m.size() == (width, height) => {
                 if let Some(r) = last.take() {

@@ -297,6 +297,14 @@ impl ArPipeline {
         }
     }
 
+    /// A copy of `rgba8` in the recycled buffer ([`ArPipeline::recycle`]), or a new one.
+    fn copy_of(&mut self, rgba8: &[u8]) -> Vec<u8> {
+        let mut copy = std::mem::take(&mut self.spare_rgba8);
+        copy.clear();
+        copy.extend_from_slice(rgba8);
+        copy
+    }
+
     /// Sets the clean plate (the set without the prop) and the camera pose it was taken from.
     pub fn set_clean_plate(&mut self, plate: ImageRgba8, camera_from_marker: Mat4) {
         self.plate = Some((plate, camera_from_marker));
@@ -384,11 +392,8 @@ impl ArPipeline {
     ) -> Result<ArFrame, ArError> {
         let n = (width * height) as usize;
         let Some(camera_from_marker) = pose else {
-            let mut copy = std::mem::take(&mut self.spare_rgba8);
-            copy.clear();
-            copy.extend_from_slice(rgba8);
             return Ok(ArFrame {
-                rgba8: copy,
+                rgba8: self.copy_of(rgba8),
                 state: TrackState::Searching,
                 camera_from_marker: None,
                 reprojection_px: None,
