@@ -584,7 +584,7 @@ impl Detector {
         // Quad fit and decoding per cluster, on the pool's threads (each cluster is
         // independent; the results keep the clusters' order, so the output does not depend
         // on the scheduling).
-        let clusters = &mut buf.seg.clusters[..buf.seg.n_clusters];
+        let clusters = buf.seg.clusters_mut();
         let fit_one = |fit: &mut FitScratch, cluster: &mut Vec<crate::quad::Pt>| {
             if cluster.len() < 24 || cluster.len() > max_cluster {
                 return Vec::new();

@@ -1,6 +1,6 @@
 //! Binarisation, connected components and boundary clusters for the quad search (the first
-//! stages of the AprilTag detector, Olson 2011 / Wang & Olson 2016), single-threaded and
-//! run-length based.
+//! stages of the AprilTag detector, Olson 2011 / Wang & Olson 2016), run-length based, in bands
+//! of rows on the pool's threads with the same result as one scan.
 //!
 //! - [`threshold`]: each pixel is compared with the midpoint of the min and max grey level of
 //!   the 3x3 block of 4x4-pixel tiles around it; blocks with less contrast than
@@ -8,8 +8,14 @@
 //!   and bottom edges use the nearest full tile and are always decided (as in the reference).
 //! - [`Segmenter::segment`]: runs of equal value per row, joined by union-find: black
 //!   4-connected, white 8-connected. Components under 25 pixels are ignored.
+//!   Each band finds its runs and joins them alone; the seams between bands are joined after.
 //! - The boundary points between every pair of adjacent black and white components (at half
-//!   pixel positions, `2x + dx`), grouped per pair: the clusters the quads are fitted to.
+//!   pixel positions, `2x + dx`), grouped per pair: the clusters the quads are fitted to. Each
+//!   band collects its own, and the bands' clusters are merged in row order.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
 
 use crate::quad::Pt;
 
@@ -133,6 +139,165 @@ struct Run {
     v: u8,
 }
 
+/// Rows per band under which the segmentation does not split the image further.
+const MIN_BAND_ROWS: usize = 32;
+
+/// The runs of one band of rows and their union-find, indices local to the band.
+#[derive(Default)]
+struct BandRuns {
+    runs: Vec<Run>,
+    /// First run of each of the band's rows.
+    row_start: Vec<u32>,
+    parent: Vec<u32>,
+    size: Vec<u32>,
+}
+
+impl BandRuns {
+    /// Runs of `rows` of `bin` (`w` wide), each row's runs joined to the row above's.
+    fn extract(&mut self, bin: &[u8], w: usize, rows: Range<usize>) {
+        self.runs.clear();
+        self.row_start.clear();
+        self.parent.clear();
+        self.size.clear();
+        for y in rows.clone() {
+            let row = &bin[y * w..(y + 1) * w];
+            let start = self.runs.len();
+            self.row_start.push(start as u32);
+            let mut x = 0;
+            while x < w {
+                let v = row[x];
+                let x0 = x;
+                x += 1;
+                // Skip quickly over long runs, 8 bytes at a time.
+                let pat = u64::from_ne_bytes([v; 8]);
+                while x + 8 <= w {
+                    let chunk = u64::from_ne_bytes(row[x..x + 8].try_into().unwrap_or([0; 8]));
+                    if chunk != pat {
+                        break;
+                    }
+                    x += 8;
+                }
+                while x < w && row[x] == v {
+                    x += 1;
+                }
+                if v != SKIP {
+                    self.parent.push(self.runs.len() as u32);
+                    self.runs.push(Run {
+                        x0: x0 as u16,
+                        x1: x as u16,
+                        v,
+                    });
+                    self.size.push((x - x0) as u32);
+                }
+            }
+            if y > rows.start {
+                let above = self.row_start[y - rows.start - 1] as usize..start;
+                let below = start..self.runs.len();
+                join_rows(&self.runs, &mut self.parent, &mut self.size, above, below);
+            }
+        }
+    }
+}
+
+/// Joins the runs of one row (`below`) to those of the row above (`above`) that touch them
+/// with the same value: white diagonally too (8-connectivity), black not.
+fn join_rows(
+    runs: &[Run],
+    parent: &mut [u32],
+    size: &mut [u32],
+    above: Range<usize>,
+    below: Range<usize>,
+) {
+    let mut j = above.start;
+    for i in below {
+        let r = runs[i];
+        let ext = (r.v == 255) as u16;
+        let (a, b) = (r.x0.saturating_sub(ext), r.x1 + ext);
+        while j < above.end && runs[j].x1 <= a {
+            j += 1;
+        }
+        let mut k = j;
+        while k < above.end && runs[k].x0 < b {
+            if runs[k].v == r.v {
+                union(parent, size, i as u32, k as u32);
+            }
+            k += 1;
+        }
+    }
+}
+
+/// Boundary points grouped per component pair, the groups in order of first appearance.
+#[derive(Default)]
+struct ClusterSink {
+    cluster_of: std::collections::HashMap<u64, u32, BuildIdHasher>,
+    keys: Vec<u64>,
+    /// Boundary points per cluster (reused allocations; those from `n` on are empty).
+    clusters: Vec<Vec<Pt>>,
+    n: usize,
+    last_key: u64,
+    last_idx: usize,
+}
+
+impl ClusterSink {
+    fn reset(&mut self) {
+        self.cluster_of.clear();
+        self.keys.clear();
+        for c in &mut self.clusters[..self.n] {
+            c.clear();
+        }
+        self.n = 0;
+        self.last_key = u64::MAX;
+        self.last_idx = 0;
+    }
+
+    /// The index of a new cluster for `key`.
+    fn open(&mut self, key: u64) -> usize {
+        let n = self.n;
+        self.cluster_of.insert(key, n as u32);
+        self.keys.push(key);
+        if self.clusters.len() == n {
+            self.clusters.push(Vec::new());
+        }
+        self.n += 1;
+        n
+    }
+
+    /// The cluster of the component pair `(l0, l1)` (either order), opened when new.
+    #[inline]
+    fn cluster(&mut self, l0: u32, l1: u32) -> &mut Vec<Pt> {
+        let key = if l0 < l1 {
+            ((l1 as u64) << 32) | l0 as u64
+        } else {
+            ((l0 as u64) << 32) | l1 as u64
+        };
+        if key != self.last_key {
+            self.last_idx = match self.cluster_of.get(&key) {
+                Some(&i) => i as usize,
+                None => self.open(key),
+            };
+            self.last_key = key;
+        }
+        &mut self.clusters[self.last_idx]
+    }
+
+    /// Appends the clusters of `later` (found in rows below this sink's): the points of a
+    /// pair both have go after this sink's, new pairs after this sink's pairs, as one scan
+    /// over all the rows would have ordered them.
+    fn absorb(&mut self, later: &mut ClusterSink) {
+        for i in 0..later.n {
+            let key = later.keys[i];
+            match self.cluster_of.get(&key) {
+                Some(&j) => self.clusters[j as usize].extend_from_slice(&later.clusters[i]),
+                None => {
+                    let j = self.open(key);
+                    std::mem::swap(&mut self.clusters[j], &mut later.clusters[i]);
+                }
+            }
+        }
+        self.last_key = u64::MAX;
+    }
+}
+
 /// Reusable buffers for the connected components and clusters.
 #[derive(Default)]
 pub(crate) struct Segmenter {
@@ -142,11 +307,11 @@ pub(crate) struct Segmenter {
     size: Vec<u32>,
     /// Per run: the component root, or `u32::MAX` for components under 25 pixels.
     label: Vec<u32>,
-    /// Cluster id per component pair.
-    cluster_of: std::collections::HashMap<u64, u32, BuildIdHasher>,
-    /// Boundary points per cluster (reused allocations).
-    pub clusters: Vec<Vec<Pt>>,
-    pub n_clusters: usize,
+    bands: Vec<BandRuns>,
+    /// The clusters (the first band's, then every band's merged into it).
+    clusters: ClusterSink,
+    /// The other bands' clusters before they are merged.
+    band_clusters: Vec<ClusterSink>,
 }
 
 /// Multiplicative hashing for the `u64` pair keys.
@@ -185,211 +350,231 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
     i
 }
 
+/// The root of `i` without path compression (for readers sharing `parent`).
+fn root(parent: &[u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        i = parent[i as usize];
+    }
+    i
+}
+
+fn union(parent: &mut [u32], size: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra == rb {
+        return;
+    }
+    let (big, small) = if size[ra as usize] >= size[rb as usize] {
+        (ra, rb)
+    } else {
+        (rb, ra)
+    };
+    parent[small as usize] = big;
+    size[big as usize] += size[small as usize];
+}
+
+/// Row `k` of `n` equal bands of `h` rows starts at.
+fn band_start(h: usize, n: usize, k: usize) -> usize {
+    h * k / n
+}
+
 impl Segmenter {
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (find(&mut self.parent, a), find(&mut self.parent, b));
-        if ra == rb {
-            return;
-        }
-        let (big, small) = if self.size[ra as usize] >= self.size[rb as usize] {
-            (ra, rb)
-        } else {
-            (rb, ra)
-        };
-        self.parent[small as usize] = big;
-        self.size[big as usize] += self.size[small as usize];
+    /// The boundary clusters found by the last [`Segmenter::segment`].
+    pub fn clusters_mut(&mut self) -> &mut [Vec<Pt>] {
+        &mut self.clusters.clusters[..self.clusters.n]
     }
 
     /// Components of the binarised image `bin` (`w x h`) and the boundary clusters between
-    /// them (`self.clusters[..self.n_clusters]`).
+    /// them ([`Segmenter::clusters_mut`]), in bands of rows on the pool's threads.
     pub fn segment(&mut self, bin: &[u8], w: usize, h: usize) {
-        self.runs.clear();
-        self.row_start.clear();
-        self.parent.clear();
-        self.size.clear();
-        // Runs and union-find over them.
-        for y in 0..h {
-            let row = &bin[y * w..(y + 1) * w];
-            let start = self.runs.len() as u32;
-            self.row_start.push(start);
-            let mut x = 0;
-            while x < w {
-                let v = row[x];
-                let x0 = x;
-                x += 1;
-                // Skip quickly over long runs, 8 bytes at a time.
-                let pat = u64::from_ne_bytes([v; 8]);
-                while x + 8 <= w {
-                    let chunk = u64::from_ne_bytes(row[x..x + 8].try_into().unwrap_or([0; 8]));
-                    if chunk != pat {
-                        break;
-                    }
-                    x += 8;
-                }
-                while x < w && row[x] == v {
-                    x += 1;
-                }
-                if v != SKIP {
-                    let id = self.runs.len() as u32;
-                    self.runs.push(Run {
-                        x0: x0 as u16,
-                        x1: x as u16,
-                        v,
-                    });
-                    self.parent.push(id);
-                    self.size.push((x - x0) as u32);
-                }
-            }
-            if y > 0 {
-                let (p0, p1) = (self.row_start[y - 1] as usize, start as usize);
-                let c1 = self.runs.len();
-                let mut j = p0;
-                for i in start as usize..c1 {
-                    let r = self.runs[i];
-                    // White joins diagonally too (8-connectivity), black does not.
-                    let ext = (r.v == 255) as u16;
-                    let (a, b) = (r.x0.saturating_sub(ext), r.x1 + ext);
-                    while j < p1 && self.runs[j].x1 <= a {
-                        j += 1;
-                    }
-                    let mut k = j;
-                    while k < p1 && self.runs[k].x0 < b {
-                        if self.runs[k].v == r.v {
-                            self.union(i as u32, k as u32);
-                        }
-                        k += 1;
-                    }
-                }
-            }
+        let bands = rayon::current_num_threads().min(h / MIN_BAND_ROWS).max(1);
+        self.segment_in_bands(bin, w, h, bands);
+    }
+
+    /// [`Segmenter::segment`] in `bands` bands of rows. The clusters, their order and the
+    /// order of their points do not depend on `bands`: each band's runs and boundary points
+    /// are found on their own, then joined across the seams in row order.
+    fn segment_in_bands(&mut self, bin: &[u8], w: usize, h: usize, bands: usize) {
+        let bands = bands.clamp(1, h.max(1));
+        if self.bands.len() < bands {
+            self.bands.resize_with(bands, BandRuns::default);
+        }
+        // Runs and union-find per band.
+        if bands == 1 {
+            self.bands[0].extract(bin, w, 0..h);
+        } else {
+            self.bands[..bands]
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, b)| {
+                    b.extract(bin, w, band_start(h, bands, k)..band_start(h, bands, k + 1))
+                });
+        }
+        // All bands' runs in one list (the first band's by a swap), then the seams.
+        let first = &mut self.bands[0];
+        std::mem::swap(&mut self.runs, &mut first.runs);
+        std::mem::swap(&mut self.row_start, &mut first.row_start);
+        std::mem::swap(&mut self.parent, &mut first.parent);
+        std::mem::swap(&mut self.size, &mut first.size);
+        for b in &self.bands[1..bands] {
+            let off = self.runs.len() as u32;
+            self.row_start.extend(b.row_start.iter().map(|s| s + off));
+            self.runs.extend_from_slice(&b.runs);
+            self.parent.extend(b.parent.iter().map(|p| p + off));
+            self.size.extend_from_slice(&b.size);
         }
         self.row_start.push(self.runs.len() as u32);
+        for k in 1..bands {
+            let y = band_start(h, bands, k);
+            let rs = &self.row_start;
+            let above = rs[y - 1] as usize..rs[y] as usize;
+            let below = rs[y] as usize..rs[y + 1] as usize;
+            join_rows(&self.runs, &mut self.parent, &mut self.size, above, below);
+        }
         // Labels: component root, or none for small components.
+        let (parent, size) = (&self.parent, &self.size);
         self.label.clear();
-        for i in 0..self.runs.len() as u32 {
-            let r = find(&mut self.parent, i);
-            let l = if self.size[r as usize] >= 25 {
-                r
-            } else {
-                u32::MAX
-            };
-            self.label.push(l);
-        }
-        // Boundary points.
-        self.cluster_of.clear();
-        for c in &mut self.clusters[..self.n_clusters] {
-            c.clear();
-        }
-        self.n_clusters = 0;
+        self.label.resize(self.runs.len(), 0);
+        let per_job = self.label.len().div_ceil(bands).max(1);
+        self.label
+            .par_chunks_mut(per_job)
+            .enumerate()
+            .for_each(|(c, out)| {
+                for (i, l) in out.iter_mut().enumerate() {
+                    let r = root(parent, (c * per_job + i) as u32);
+                    *l = if size[r as usize] >= 25 { r } else { u32::MAX };
+                }
+            });
+        // Boundary points per band, merged in row order.
+        self.clusters.reset();
         if w < 3 || h < 3 {
             return;
         }
-        let xmax = (w - 1) as u16; // pixels x in [1, w - 1) are sources
-        let mut last_key = u64::MAX;
-        let mut last_idx = 0usize;
-        for y in 1..h - 1 {
-            let (r0, r1) = (self.row_start[y] as usize, self.row_start[y + 1] as usize);
-            let (s0, s1) = (r1, self.row_start[y + 2] as usize);
-            let mut j = s0;
-            for i in r0..r1 {
-                let r = self.runs[i];
-                let l0 = self.label[i];
-                if l0 == u32::MAX {
-                    continue;
+        if self.band_clusters.len() + 1 < bands {
+            self.band_clusters
+                .resize_with(bands - 1, ClusterSink::default);
+        }
+        let (runs, row_start, label) = (&self.runs, &self.row_start, &self.label);
+        let source_rows =
+            |k: usize| band_start(h, bands, k).max(1)..band_start(h, bands, k + 1).min(h - 1);
+        if bands == 1 {
+            boundary_points(
+                runs,
+                row_start,
+                label,
+                w,
+                source_rows(0),
+                &mut self.clusters,
+            );
+        } else {
+            let mut sinks: Vec<&mut ClusterSink> = std::iter::once(&mut self.clusters)
+                .chain(self.band_clusters.iter_mut())
+                .take(bands)
+                .collect();
+            sinks.par_iter_mut().enumerate().for_each(|(k, sink)| {
+                if k > 0 {
+                    sink.reset();
                 }
-                let d = 255 - 2 * r.v as i16; // v1 - v0 for the opposite colour
-                                              // Horizontal: the run's last pixel and the next run's first.
-                if i + 1 < r1 {
-                    let n = self.runs[i + 1];
-                    let x = r.x1 - 1;
-                    if n.x0 == r.x1 && n.v != r.v && x >= 1 && x < xmax {
-                        let l1 = self.label[i + 1];
-                        if l1 != u32::MAX {
-                            let p = Pt {
-                                x: 2 * x + 1,
-                                y: 2 * y as u16,
-                                gx: d,
-                                gy: 0,
-                                slope: 0.0,
-                            };
-                            self.push(l0, l1, p, &mut last_key, &mut last_idx);
-                        }
-                    }
-                }
-                // Row below: straight down and both diagonals.
-                let (a, b) = (r.x0.max(1), r.x1.min(xmax));
-                if a >= b {
-                    continue;
-                }
-                while j < s1 && self.runs[j].x1 < a {
-                    j += 1;
-                }
-                let mut k = j;
-                while k < s1 && self.runs[k].x0 < b + 1 {
-                    let s = self.runs[k];
-                    k += 1;
-                    if s.v == r.v {
-                        continue;
-                    }
-                    let l1 = self.label[k - 1];
-                    if l1 == u32::MAX {
-                        continue;
-                    }
-                    // Source pixels x in [a, b) with x + dx in [s.x0, s.x1).
-                    for x in a.max(s.x0)..b.min(s.x1) {
-                        let p = Pt {
-                            x: 2 * x,
-                            y: 2 * y as u16 + 1,
-                            gx: 0,
-                            gy: d,
-                            slope: 0.0,
-                        };
-                        self.push(l0, l1, p, &mut last_key, &mut last_idx);
-                    }
-                    for x in a.max(s.x0 + 1)..b.min(s.x1 + 1) {
-                        let p = Pt {
-                            x: 2 * x - 1,
-                            y: 2 * y as u16 + 1,
-                            gx: -d,
-                            gy: d,
-                            slope: 0.0,
-                        };
-                        self.push(l0, l1, p, &mut last_key, &mut last_idx);
-                    }
-                    for x in a.max(s.x0.saturating_sub(1))..b.min(s.x1.saturating_sub(1)) {
-                        let p = Pt {
-                            x: 2 * x + 1,
-                            y: 2 * y as u16 + 1,
-                            gx: d,
-                            gy: d,
-                            slope: 0.0,
-                        };
-                        self.push(l0, l1, p, &mut last_key, &mut last_idx);
-                    }
-                }
+                boundary_points(runs, row_start, label, w, source_rows(k), sink);
+            });
+            for later in &mut self.band_clusters[..bands - 1] {
+                self.clusters.absorb(later);
             }
         }
     }
+}
 
-    #[inline]
-    fn push(&mut self, l0: u32, l1: u32, p: Pt, last_key: &mut u64, last_idx: &mut usize) {
-        let key = if l0 < l1 {
-            ((l1 as u64) << 32) | l0 as u64
-        } else {
-            ((l0 as u64) << 32) | l1 as u64
-        };
-        if key != *last_key {
-            let n = self.n_clusters;
-            let idx = *self.cluster_of.entry(key).or_insert(n as u32) as usize;
-            if idx == n {
-                if self.clusters.len() == n {
-                    self.clusters.push(Vec::new());
-                }
-                self.n_clusters += 1;
+/// The boundary points of the runs of `rows` (source rows, each with the row below) between
+/// components of 25 pixels or more, into `sink`.
+fn boundary_points(
+    runs: &[Run],
+    row_start: &[u32],
+    label: &[u32],
+    w: usize,
+    rows: Range<usize>,
+    sink: &mut ClusterSink,
+) {
+    let xmax = (w - 1) as u16; // pixels x in [1, w - 1) are sources
+    for y in rows {
+        let (r0, r1) = (row_start[y] as usize, row_start[y + 1] as usize);
+        let (s0, s1) = (r1, row_start[y + 2] as usize);
+        let mut j = s0;
+        for i in r0..r1 {
+            let r = runs[i];
+            let l0 = label[i];
+            if l0 == u32::MAX {
+                continue;
             }
-            *last_key = key;
-            *last_idx = idx;
+            let d = 255 - 2 * r.v as i16; // v1 - v0 for the opposite colour
+                                          // Horizontal: the run's last pixel and the next run's first.
+            if i + 1 < r1 {
+                let n = runs[i + 1];
+                let x = r.x1 - 1;
+                if n.x0 == r.x1 && n.v != r.v && x >= 1 && x < xmax {
+                    let l1 = label[i + 1];
+                    if l1 != u32::MAX {
+                        let p = Pt {
+                            x: 2 * x + 1,
+                            y: 2 * y as u16,
+                            gx: d,
+                            gy: 0,
+                            slope: 0.0,
+                        };
+                        sink.cluster(l0, l1).push(p);
+                    }
+                }
+            }
+            // Row below: straight down and both diagonals.
+            let (a, b) = (r.x0.max(1), r.x1.min(xmax));
+            if a >= b {
+                continue;
+            }
+            while j < s1 && runs[j].x1 < a {
+                j += 1;
+            }
+            let mut k = j;
+            while k < s1 && runs[k].x0 < b + 1 {
+                let s = runs[k];
+                k += 1;
+                if s.v == r.v {
+                    continue;
+                }
+                let l1 = label[k - 1];
+                if l1 == u32::MAX {
+                    continue;
+                }
+                // Source pixels x in [a, b) with x + dx in [s.x0, s.x1), each direction
+                // in turn.
+                let row_y = 2 * y as u16 + 1;
+                let c = sink.cluster(l0, l1);
+                for x in a.max(s.x0)..b.min(s.x1) {
+                    c.push(Pt {
+                        x: 2 * x,
+                        y: row_y,
+                        gx: 0,
+                        gy: d,
+                        slope: 0.0,
+                    });
+                }
+                for x in a.max(s.x0 + 1)..b.min(s.x1 + 1) {
+                    c.push(Pt {
+                        x: 2 * x - 1,
+                        y: row_y,
+                        gx: -d,
+                        gy: d,
+                        slope: 0.0,
+                    });
+                }
+                for x in a.max(s.x0.saturating_sub(1))..b.min(s.x1.saturating_sub(1)) {
+                    c.push(Pt {
+                        x: 2 * x + 1,
+                        y: row_y,
+                        gx: d,
+                        gy: d,
+                        slope: 0.0,
+                    });
+                }
+            }
         }
-        self.clusters[*last_idx].push(p);
     }
 }
 
@@ -552,26 +737,31 @@ mod tests {
         out
     }
 
+    /// A binarised `w x h` image of random blocks of `cell` px, some undecided.
+    fn random_blocks(rng: &mut Rng, w: usize, h: usize, cell: usize) -> Vec<u8> {
+        let (bw, bh) = (w.div_ceil(cell), h.div_ceil(cell));
+        let blocks: Vec<u8> = (0..bw * bh)
+            .map(|_| match rng.next() % 7 {
+                0 => SKIP,
+                1..=3 => 0,
+                _ => 255,
+            })
+            .collect();
+        (0..w * h)
+            .map(|i| blocks[(i / w / cell) * bw + (i % w) / cell])
+            .collect()
+    }
+
     #[test]
     fn clusters_match_the_reference_definition() {
         let mut rng = Rng(11);
         let mut seg = Segmenter::default();
         for (w, h) in [(40usize, 30usize), (64, 64), (97, 53)] {
             for cell in [1usize, 2, 3, 5] {
-                // Random blocks of `cell` px, with some undecided ones.
-                let (bw, bh) = (w.div_ceil(cell), h.div_ceil(cell));
-                let blocks: Vec<u8> = (0..bw * bh)
-                    .map(|_| match rng.next() % 7 {
-                        0 => SKIP,
-                        1..=3 => 0,
-                        _ => 255,
-                    })
-                    .collect();
-                let bin: Vec<u8> = (0..w * h)
-                    .map(|i| blocks[(i / w / cell) * bw + (i % w) / cell])
-                    .collect();
-                seg.segment(&bin, w, h);
-                let mut ours: PointLists = seg.clusters[..seg.n_clusters]
+                let bin = random_blocks(&mut rng, w, h, cell);
+                seg.segment_in_bands(&bin, w, h, 3);
+                let mut ours: PointLists = seg
+                    .clusters_mut()
                     .iter()
                     .map(|c| {
                         let mut v: Vec<_> = c.iter().map(|p| (p.x, p.y, p.gx, p.gy)).collect();
@@ -581,6 +771,43 @@ mod tests {
                     .collect();
                 ours.sort();
                 assert_eq!(ours, clusters_naive(&bin, w, h), "{w}x{h}, cell {cell}");
+            }
+        }
+    }
+
+    /// Every cluster's points, in the segmenter's order (clusters and points unsorted).
+    fn clusters_in_order(seg: &mut Segmenter) -> PointLists {
+        seg.clusters_mut()
+            .iter()
+            .map(|c| c.iter().map(|p| (p.x, p.y, p.gx, p.gy)).collect())
+            .collect()
+    }
+
+    #[test]
+    fn bands_give_the_clusters_of_one_scan_in_the_same_order() {
+        let mut rng = Rng(23);
+        let (mut one, mut banded) = (Segmenter::default(), Segmenter::default());
+        for (w, h) in [(64usize, 48usize), (97, 131), (200, 37)] {
+            for cell in [1usize, 2, 4] {
+                // With a black ring across every seam, so that components span bands.
+                let mut bin = random_blocks(&mut rng, w, h, cell);
+                for (i, v) in bin.iter_mut().enumerate() {
+                    let (x, y) = (i % w, i / w);
+                    if x == 3 || x == w - 4 || y == 3 || y == h - 4 {
+                        *v = 0;
+                    }
+                }
+                one.segment_in_bands(&bin, w, h, 1);
+                let reference = clusters_in_order(&mut one);
+                assert!(
+                    reference.len() > 3,
+                    "{w}x{h}, cell {cell}: too few clusters"
+                );
+                for bands in [2, 3, 5, h] {
+                    banded.segment_in_bands(&bin, w, h, bands);
+                    let ours = clusters_in_order(&mut banded);
+                    assert_eq!(ours, reference, "{w}x{h}, cell {cell}, {bands} bands");
+                }
             }
         }
     }
