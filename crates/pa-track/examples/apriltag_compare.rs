@@ -96,6 +96,9 @@ fn photos(src: &Path, args: &[String]) -> Res<()> {
         .filter(|p| p.extension().is_some_and(|e| e == "jpg"))
         .collect();
     jpgs.sort();
+    if jpgs.is_empty() {
+        return Err(format!("{}: no .jpg photos", src.display()).into());
+    }
     let mut truth = String::new();
     for (f, jpg) in jpgs.iter().enumerate() {
         let image = GrayImage::from(&image::open(jpg)?);
@@ -428,6 +431,9 @@ fn run(dir: &Path, args: &[String]) -> Res<()> {
         .iter()
         .map(|p| read_pgm(p))
         .collect::<Res<_>>()?;
+    if images.is_empty() {
+        return Err(format!("{}: no frames listed in truth.txt", dir.display()).into());
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;

@@ -24,7 +24,8 @@ use glam::DVec2;
 use rayon::prelude::*;
 
 use crate::quad::{
-    decode, fit_quad, refine_edges_reference, FamilyCodes, FitScratch, Homography, QuadParams,
+    decode, fit_quad, may_decode, refine_edges_reference, FamilyCodes, FitScratch, Homography,
+    QuadParams,
 };
 use crate::segment::{threshold, Segmenter};
 
@@ -612,6 +613,19 @@ impl Detector {
             // (refining them too moves the corners by 0.3 px on average from the reference
             // library's and 0.3 px off the truth on sharp synthetic tags).
             if refine && decimate > 1 {
+                // Most quads of a noisy frame are noise: read them at these corners first,
+                // and refine only those that may decode (the refinement costs more than
+                // the reading; `may_decode`).
+                let hom = Homography::from_quad(&q.p);
+                let may = hom.is_some_and(|hom| {
+                    families.iter().any(|(_, f)| {
+                        f.reversed_border() == q.reversed_border
+                            && may_decode(&image.data, w, h, f, &hom, DECODE_SHARPENING)
+                    })
+                });
+                if !may {
+                    return Vec::new();
+                }
                 refine_edges_reference(&image.data, w, h, &mut q, decimate as f64 + 1.0);
             }
             decode_quad(&image.data, w, h, families, &q, min_margin)
@@ -689,6 +703,9 @@ impl Detector {
     }
 }
 
+/// The decoder's sharpening of the bit values (the reference library's `decode_sharpening`).
+const DECODE_SHARPENING: f64 = 0.25;
+
 /// Clusters per parallel job of the quad fit (most clusters are small and rejected early).
 const PAR_MIN_CLUSTERS: usize = 64;
 
@@ -710,7 +727,7 @@ fn decode_quad(
         if codes.reversed_border() != q.reversed_border {
             continue;
         }
-        let Some(dec) = decode(gray, w, h, codes, &hom, 0.25) else {
+        let Some(dec) = decode(gray, w, h, codes, &hom, DECODE_SHARPENING) else {
             continue;
         };
         if dec.margin < min_margin {

@@ -511,6 +511,7 @@ pub(crate) struct FamilyCodes {
     bit_y: Vec<i8>,
     codes: Vec<usize>,
     quick: QuickDecode,
+    max_hamming: u8,
 }
 
 impl FamilyCodes {
@@ -525,6 +526,7 @@ impl FamilyCodes {
             bit_y: f.bit_y.to_vec(),
             quick: QuickDecode::new(f.nbits, &codes, max_hamming),
             codes,
+            max_hamming,
         }
     }
 
@@ -541,6 +543,19 @@ impl FamilyCodes {
         let (p, l) = if n % 4 == 1 { (n - 1, 1) } else { (n, 0) };
         let w = ((w >> l) << (p / 4 + l)) | ((w >> (3 * p / 4 + l)) << l) | (w & l);
         w & ((1usize << n) - 1)
+    }
+
+    /// The smallest Hamming distance from `rcode`, in any of its four rotations, to a code of
+    /// the family.
+    fn nearest_hamming(&self, mut rcode: usize) -> u32 {
+        let mut best = u32::MAX;
+        for _ in 0..4 {
+            for &c in &self.codes {
+                best = best.min((rcode ^ c).count_ones());
+            }
+            rcode = self.rotate90(rcode);
+        }
+        best
     }
 
     /// `(id, hamming, rotation)` of the code, trying the four rotations.
@@ -627,6 +642,26 @@ pub(crate) struct Decoded {
     pub h: Homography,
 }
 
+/// Bits read off a quad at corners not yet refined, more than the family's `max_hamming` from
+/// every code, under which [`may_decode`] lets the quad through.
+pub(crate) const UNREFINED_SLACK_BITS: u32 = 4;
+
+/// Whether the quad may decode once refined: read at these corners, its code lies within the
+/// family's `max_hamming` plus [`UNREFINED_SLACK_BITS`] of a code. Corners off by a pixel move
+/// a few bits at most; a quad of noise lies 10 or more bits from every code of a 36-bit family.
+pub(crate) fn may_decode(
+    gray: &[u8],
+    width: usize,
+    height: usize,
+    fam: &FamilyCodes,
+    h: &Homography,
+    sharpening: f64,
+) -> bool {
+    read_code(gray, width, height, fam, h, sharpening).is_some_and(|(rcode, _)| {
+        fam.nearest_hamming(rcode) <= fam.max_hamming as u32 + UNREFINED_SLACK_BITS
+    })
+}
+
 /// Decodes the quad against one family (on the full-resolution grey image).
 pub(crate) fn decode(
     gray: &[u8],
@@ -636,6 +671,44 @@ pub(crate) fn decode(
     h: &Homography,
     sharpening: f64,
 ) -> Option<Decoded> {
+    let (rcode, margin) = read_code(gray, width, height, fam, h, sharpening)?;
+    let (id, hamming, rot) = fam.lookup(rcode)?; // Turn the homography by the decoded rotation: H * R(rot * 90 deg).
+    let (c, s) = match rot {
+        0 => (1.0, 0.0),
+        1 => (0.0, 1.0),
+        2 => (-1.0, 0.0),
+        _ => (0.0, -1.0),
+    };
+    let m = &h.0;
+    let hr = Homography([
+        m[0] * c + m[1] * s,
+        -m[0] * s + m[1] * c,
+        m[2],
+        m[3] * c + m[4] * s,
+        -m[3] * s + m[4] * c,
+        m[5],
+        m[6] * c + m[7] * s,
+        -m[6] * s + m[7] * c,
+        m[8],
+    ]);
+    Some(Decoded {
+        id,
+        hamming,
+        margin,
+        h: hr,
+    })
+}
+
+/// The code read off the quad (bits in the family's order) and its decision margin; `None`
+/// when the border's grey levels are the wrong way round or the margin is not a number.
+fn read_code(
+    gray: &[u8],
+    width: usize,
+    height: usize,
+    fam: &FamilyCodes,
+    h: &Homography,
+    sharpening: f64,
+) -> Option<(usize, f32)> {
     let wb = fam.width_at_border as f64;
     // (start x, start y, step x, step y, white) in cell units.
     let patterns = [
@@ -733,32 +806,7 @@ pub(crate) fn decode(
     if margin.is_nan() || margin < 0.0 {
         return None;
     }
-    let (id, hamming, rot) = fam.lookup(rcode)?;
-    // Turn the homography by the decoded rotation: H * R(rot * 90 deg).
-    let (c, s) = match rot {
-        0 => (1.0, 0.0),
-        1 => (0.0, 1.0),
-        2 => (-1.0, 0.0),
-        _ => (0.0, -1.0),
-    };
-    let m = &h.0;
-    let hr = Homography([
-        m[0] * c + m[1] * s,
-        -m[0] * s + m[1] * c,
-        m[2],
-        m[3] * c + m[4] * s,
-        -m[3] * s + m[4] * c,
-        m[5],
-        m[6] * c + m[7] * s,
-        -m[6] * s + m[7] * c,
-        m[8],
-    ]);
-    Some(Decoded {
-        id,
-        hamming,
-        margin,
-        h: hr,
-    })
+    Some((rcode, margin))
 }
 
 /// The reference library's edge refinement (`refine_edges`): for samples along each edge,
@@ -844,3 +892,7 @@ pub(crate) fn refine_edges_reference(
         }
     }
 }
+
+#[cfg(test)]
+#[path = "quad_tests.rs"]
+mod tests;
