@@ -238,8 +238,9 @@ fn accumulate_sweep(
         inv_norm: f32,
         /// The previous row is inside the image.
         prev_in_image: bool,
-        /// Offset in `steps` of the previous row's counts, when inside the region.
-        prev: Option<usize>,
+        /// Offsets of the previous row in `steps` (its counts) and in `to_fill`, when inside
+        /// the region.
+        prev: Option<(usize, usize)>,
         /// Offset in `steps` of this row's counts.
         cur: usize,
     }
@@ -269,7 +270,8 @@ fn accumulate_sweep(
             let ply = py - ry;
             let back = r.dy.unsigned_abs();
             let ring = |row: usize| (j * STEP_ROWS + row % STEP_ROWS) * rw;
-            r.prev = (ply >= 0 && (ply as usize) < rh).then(|| ring(i + STEP_ROWS - back));
+            r.prev = (ply >= 0 && (ply as usize) < rh)
+                .then(|| (ring(i + STEP_ROWS - back), ply as usize * rw));
             r.cur = ring(i);
         }
         let (first, last) = spans[ly];
@@ -291,14 +293,14 @@ fn accumulate_sweep(
                     NONE
                 } else {
                     let plx = lx as isize - r.dx;
+                    // The previous pixel is still unknown: one step more than its count.
                     match r.prev {
-                        Some(prev) if plx >= 0 && (plx as usize) < rw => {
-                            let pli = ly as isize - r.dy;
-                            if to_fill[pli as usize * rw + plx as usize] != 0 {
-                                steps[prev + plx as usize].saturating_add(1)
-                            } else {
-                                1
-                            }
+                        Some((prev, prev_row))
+                            if plx >= 0
+                                && (plx as usize) < rw
+                                && to_fill[prev_row + plx as usize] != 0 =>
+                        {
+                            steps[prev + plx as usize].saturating_add(1)
                         }
                         _ => 1,
                     }

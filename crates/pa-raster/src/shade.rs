@@ -183,12 +183,21 @@ impl ShadeContext<'_> {
                 let a = self.albedo(&f);
                 (code::NONE, self.encode([a[0], a[1], a[2]], a[3]))
             }
-            Shading::Live { frame, params } => {
-                let [pc, nc, pa, na] = f.lookup_inputs();
-                let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
-                self.live_pixel(&f, frame, params, looked)
-            }
+            Shading::Live { frame, params } => self.live_alone(&f, frame, params),
         }
+    }
+
+    /// The code and sRGB RGBA8 of a live-textured fragment, looked up on its own.
+    #[inline(always)]
+    fn live_alone(
+        &self,
+        f: &Fragment<'_>,
+        frame: &FrameSampler<'_>,
+        params: &LiveParams,
+    ) -> (u8, [u8; 4]) {
+        let [pc, nc, pa, na] = f.lookup_inputs();
+        let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
+        self.live_pixel(f, frame, params, looked)
     }
 
     /// The code and sRGB RGBA8 of a live-textured fragment given its look-up
@@ -264,9 +273,7 @@ impl ShadeContext<'_> {
         }
         for (x, f) in &group[..n] {
             if let Some(f) = f {
-                let [pc, nc, pa, na] = f.lookup_inputs();
-                let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
-                put(*x, self.live_pixel(f, frame, params, looked));
+                put(*x, self.live_alone(f, frame, params));
             }
         }
     }
