@@ -125,40 +125,14 @@ impl VertexMemory {
     /// Adds one sample of linear colour `rgb` with weight `w` to vertex `i`; returns whether
     /// it was taken as an outlier. Ignored when `i` is out of range or `w` is not positive.
     pub fn add_sample(&mut self, i: usize, rgb: [f32; 3], w: f32) -> bool {
-        if i >= self.weight.len() || w.is_nan() || w <= 0.0 || rgb.iter().any(|c| !c.is_finite()) {
+        if i >= self.weight.len() {
             return false;
         }
-        let mut w = w;
-        let mut outlier = false;
-        let wi = self.weight[i];
-        if wi >= ESTABLISHED_WEIGHT {
-            let mean = self.mean[i];
-            let var = self.variance(i);
-            let d2: f32 = (0..3).map(|c| (rgb[c] - mean[c]).powi(2)).sum();
-            let v: f32 = var.iter().map(|v| v + MIN_SIGMA * MIN_SIGMA).sum();
-            if d2 > OUTLIER_SIGMAS * OUTLIER_SIGMAS * v {
-                w *= OUTLIER_FACTOR;
-                outlier = true;
-            }
-        }
-        // Capped: scale the history down so that old samples fade.
-        if wi + w > MAX_WEIGHT && wi > 0.0 {
-            let s = ((MAX_WEIGHT - w).max(0.0) / wi).min(1.0);
-            self.weight[i] *= s;
-            for m in &mut self.m2[i] {
-                *m *= s;
-            }
-        }
-        // West's weighted incremental mean and variance.
-        let total = self.weight[i] + w;
-        let (mean, m2) = (&mut self.mean[i], &mut self.m2[i]);
-        for ((x, m), s2) in rgb.iter().zip(mean.iter_mut()).zip(m2.iter_mut()) {
-            let delta = x - *m;
-            *m += delta * w / total;
-            *s2 += w * delta * (x - *m);
-        }
-        self.weight[i] = total;
-        outlier
+        add_to(
+            (&mut self.weight[i], &mut self.mean[i], &mut self.m2[i]),
+            rgb,
+            w,
+        )
     }
 
     /// Samples every vertex the frame sees (see the module docs): `positions_world` and
@@ -177,9 +151,8 @@ impl VertexMemory {
         normals_world: &[Vec3],
         lut: &[f32; 256],
     ) -> ObserveCounts {
-        let mut counts = ObserveCounts::default();
         if positions_world.len() != self.len() || normals_world.len() != self.len() {
-            return counts;
+            return ObserveCounts::default();
         }
         let mut p = *params;
         p.max_stretch = 0.0;
@@ -212,23 +185,24 @@ impl VertexMemory {
             let w = cos * resolution * margin;
             Some((frame.sample_linear(pixel[0], pixel[1], lut), w))
         };
-        let mut samples = Vec::new();
-        positions_world
-            .par_iter()
-            .zip(normals_world.par_iter())
+        // Vertices are independent: each one sampled and added in the same pass.
+        self.weight
+            .par_iter_mut()
+            .zip(self.mean.par_iter_mut())
+            .zip(self.m2.par_iter_mut())
+            .zip(positions_world.par_iter().zip(normals_world.par_iter()))
             .with_min_len(1024)
-            .map(sample)
-            .collect_into_vec(&mut samples);
-        for (i, s) in samples.into_iter().enumerate() {
-            let Some((rgb, w)) = s else {
-                continue;
-            };
-            counts.sampled += 1;
-            if self.add_sample(i, rgb, w) {
-                counts.outliers += 1;
-            }
-        }
-        counts
+            .map(|(((weight, mean), m2), vertex)| match sample(vertex) {
+                Some((rgb, w)) => ObserveCounts {
+                    sampled: 1,
+                    outliers: usize::from(add_to((weight, mean, m2), rgb, w)),
+                },
+                None => ObserveCounts::default(),
+            })
+            .reduce(ObserveCounts::default, |mut a, b| {
+                a += b;
+                a
+            })
     }
 
     /// The vertex attribute both render paths read: linear RGB times confidence, and the
@@ -241,6 +215,46 @@ impl VertexMemory {
             [m[0] * c, m[1] * c, m[2] * c, c]
         }));
     }
+}
+
+/// [`VertexMemory::add_sample`] on one vertex's `(weight, mean, m2)`.
+fn add_to(
+    (weight, mean, m2): (&mut f32, &mut [f32; 3], &mut [f32; 3]),
+    rgb: [f32; 3],
+    w: f32,
+) -> bool {
+    if w.is_nan() || w <= 0.0 || rgb.iter().any(|c| !c.is_finite()) {
+        return false;
+    }
+    let mut w = w;
+    let mut outlier = false;
+    let wi = *weight;
+    if wi >= ESTABLISHED_WEIGHT {
+        let var = m2.map(|m| m / wi);
+        let d2: f32 = (0..3).map(|c| (rgb[c] - mean[c]).powi(2)).sum();
+        let v: f32 = var.iter().map(|v| v + MIN_SIGMA * MIN_SIGMA).sum();
+        if d2 > OUTLIER_SIGMAS * OUTLIER_SIGMAS * v {
+            w *= OUTLIER_FACTOR;
+            outlier = true;
+        }
+    }
+    // Capped: scale the history down so that old samples fade.
+    if wi + w > MAX_WEIGHT && wi > 0.0 {
+        let s = ((MAX_WEIGHT - w).max(0.0) / wi).min(1.0);
+        *weight *= s;
+        for m in m2.iter_mut() {
+            *m *= s;
+        }
+    }
+    // West's weighted incremental mean and variance.
+    let total = *weight + w;
+    for ((x, m), s2) in rgb.iter().zip(mean.iter_mut()).zip(m2.iter_mut()) {
+        let delta = x - *m;
+        *m += delta * w / total;
+        *s2 += w * delta * (x - *m);
+    }
+    *weight = total;
+    outlier
 }
 
 /// Share (0.2 to 1) of the four taps [`MARGIN_PX`] away from `pc`'s pinhole pixel in the

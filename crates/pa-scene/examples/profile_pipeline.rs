@@ -65,7 +65,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )
             .map_err(|e| e.to_string())?;
         let s = out.timings;
-        p.recycle(out.rgba8);
+        let mut out = out;
+        p.recycle_frame(&mut out);
         t.push([
             s.track_ms,
             s.animate_ms,

@@ -335,8 +335,9 @@ pub fn run_scene_setup<E: From<SceneError>>(
         );
         each(&f, &out, &m, &revealed)?;
         all.push(m);
-        // Written and measured: the image is the next frame's buffer.
-        pipeline.recycle(out.rgba8);
+        // Written and measured: its buffers are the next frame's.
+        let mut out = out;
+        pipeline.recycle_frame(&mut out);
     }
     Ok(all)
 }

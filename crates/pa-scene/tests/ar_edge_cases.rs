@@ -166,3 +166,66 @@ fn a_recycled_image_is_written_over_and_changes_no_frame() {
         spare.push(got.rgba8);
     }
 }
+
+/// `recycle_frame` hands a frame's image, masks and codes back: poisoned before they are
+/// handed back (every mask pixel set, every code garbage), none of it may show in the next
+/// frames, and the buffers are reused.
+#[test]
+fn a_recycled_frame_changes_no_mask_code_or_image() {
+    let Some((mut renderer, scene)) = setup() else {
+        return;
+    };
+    let settings = ArSettings::ours();
+    let mut plain = pipeline_for(&scene, &mut renderer, settings).expect("pipeline");
+    let mut recycling = pipeline_for(&scene, &mut renderer, settings).expect("pipeline");
+    // The CPU path makes its masks and codes in the recycled buffers.
+    for p in [&mut plain, &mut recycling] {
+        p.set_render_path(pa_pipeline::ar::RenderPath::Cpu);
+    }
+    let mut last: Option<pa_pipeline::ar::ArFrame> = None;
+    for i in 0..4u32 {
+        let f = scene.frame(&mut renderer, i).expect("frame");
+        let want =
+            pa_scene::eval::process_at_true_pose(&mut plain, &mut renderer, &f).expect("process");
+        let mut mask_addresses = Vec::new();
+        if let Some(mut old) = last.take() {
+            for m in [&mut old.twin_mask, &mut old.key_mask] {
+                m.fill(true);
+                mask_addresses.push(m.as_ptr());
+            }
+            old.live_codes.fill(0xAB);
+            old.rgba8.fill(0x5A);
+            recycling.recycle_frame(&mut old);
+            assert!(
+                old.rgba8.is_empty() && old.twin_mask.is_empty() && old.live_codes.is_empty(),
+                "frame {i}: the buffers stay with the frame"
+            );
+        }
+        let got = pa_scene::eval::process_at_true_pose(&mut recycling, &mut renderer, &f)
+            .expect("process");
+        assert!(got.rgba8 == want.rgba8, "frame {i}: image changed");
+        assert!(
+            got.twin_mask == want.twin_mask,
+            "frame {i}: twin mask changed"
+        );
+        assert!(got.key_mask == want.key_mask, "frame {i}: key mask changed");
+        assert!(
+            got.live_codes == want.live_codes,
+            "frame {i}: codes changed"
+        );
+        assert_eq!(got.live_counts, want.live_counts, "frame {i}");
+        assert!(
+            want.twin_mask.iter().any(|&m| m),
+            "frame {i}: the twin must show"
+        );
+        for m in [&got.twin_mask, &got.key_mask] {
+            if !mask_addresses.is_empty() {
+                assert!(
+                    mask_addresses.contains(&m.as_ptr()),
+                    "frame {i}: a mask buffer was not reused"
+                );
+            }
+        }
+        last = Some(got);
+    }
+}

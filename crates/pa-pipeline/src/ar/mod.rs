@@ -117,6 +117,39 @@ pub struct ArPipeline {
     /// An output buffer handed back by [`ArPipeline::recycle`], reused by the next frame
     /// (empty until then).
     spare_rgba8: Vec<u8>,
+    /// Masks and a code buffer handed back by [`ArPipeline::recycle_frame`].
+    spare: SpareBuffers,
+}
+
+/// Frame-sized buffers a caller handed back, for the next frame's masks and codes (a fresh
+/// buffer costs a page fault per 4 KiB it touches).
+#[derive(Default)]
+pub(super) struct SpareBuffers {
+    masks: Vec<Vec<bool>>,
+    codes: Vec<u8>,
+}
+
+impl SpareBuffers {
+    /// A recycled mask buffer (stale contents) or an empty one.
+    pub(super) fn take_mask(&mut self) -> Vec<bool> {
+        self.masks.pop().unwrap_or_default()
+    }
+
+    /// A mask of `n` pixels, all false: a recycled one when there is one.
+    pub(super) fn mask(&mut self, n: usize) -> Vec<bool> {
+        let mut m = self.take_mask();
+        m.clear();
+        m.resize(n, false);
+        m
+    }
+
+    /// A copy of `codes` in the recycled code buffer, or a new one.
+    pub(super) fn codes_copy(&mut self, codes: &[u8]) -> Vec<u8> {
+        let mut c = std::mem::take(&mut self.codes);
+        c.clear();
+        c.extend_from_slice(codes);
+        c
+    }
 }
 
 /// One prop drawn in every frame: its model, the animation it plays and its placement on the
@@ -210,6 +243,7 @@ impl ArPipeline {
             memory: memory::TextureMemory::default(),
             surfaces: None,
             spare_rgba8: Vec::new(),
+            spare: SpareBuffers::default(),
         })
     }
 
@@ -294,6 +328,22 @@ impl ArPipeline {
     pub fn recycle(&mut self, rgba8: Vec<u8>) {
         if rgba8.capacity() > self.spare_rgba8.capacity() {
             self.spare_rgba8 = rgba8;
+        }
+    }
+
+    /// Hands every frame-sized buffer of a processed frame back (its image, masks and codes,
+    /// left empty in `frame`) so that the next frame reuses their memory: [`ArPipeline::recycle`]
+    /// for all of them, for a loop done with a frame's buffers (keep a copy of what you
+    /// still need first).
+    pub fn recycle_frame(&mut self, frame: &mut ArFrame) {
+        self.recycle(std::mem::take(&mut frame.rgba8));
+        for m in [&mut frame.twin_mask, &mut frame.key_mask] {
+            if self.spare.masks.len() < 2 && !m.is_empty() {
+                self.spare.masks.push(std::mem::take(m));
+            }
+        }
+        if frame.live_codes.capacity() > self.spare.codes.capacity() {
+            self.spare.codes = std::mem::take(&mut frame.live_codes);
         }
     }
 
@@ -398,8 +448,8 @@ impl ArPipeline {
                 camera_from_marker: None,
                 reprojection_px: None,
                 timings: StageTimings::default(),
-                twin_mask: vec![false; n],
-                key_mask: vec![false; n],
+                twin_mask: self.spare.mask(n),
+                key_mask: self.spare.mask(n),
                 live_counts: (0, 0),
                 live_codes: vec![0; n],
                 passes: None,

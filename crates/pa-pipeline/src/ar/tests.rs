@@ -7,7 +7,7 @@ use pa_camera::{CameraModel, Intrinsics};
 use pa_diminish::{Mask, Rect};
 
 use super::fill::{clear_rect, hide_twin_interior};
-use super::texture::mask_of_vis;
+use super::texture::mask_from_vis;
 use super::*;
 
 #[test]
@@ -258,10 +258,12 @@ fn twin_interior_hiding_matches_the_definition_across_bands() {
 }
 
 #[test]
-fn mask_of_vis_reads_only_the_dirty_rectangle() {
+fn mask_from_vis_reads_only_the_dirty_rectangle() {
     let mut v = pa_raster::VisBuffer::new(6, 5);
-    let (mask, bbox) = mask_of_vis(&v);
-    assert!(mask.iter().all(|&m| !m) && bbox.is_none());
+    // A recycled buffer of another size with stale marks: made the frame's size, cleared.
+    let mut mask = vec![true; 7];
+    let bbox = mask_from_vis(&v, &mut mask);
+    assert!(mask.len() == 30 && mask.iter().all(|&m| !m) && bbox.is_none());
     for (x, y) in [(2, 1), (4, 2), (1, 3)] {
         v.inv_z[y * 6 + x] = 0.5;
     }
@@ -273,7 +275,10 @@ fn mask_of_vis_reads_only_the_dirty_rectangle() {
         x1: 4,
         y1: 3,
     });
-    let (mask, bbox) = mask_of_vis(&v);
+    // Stale marks of the last frame are cleared too.
+    mask[0] = true;
+    mask[29] = true;
+    let bbox = mask_from_vis(&v, &mut mask);
     assert_eq!(bbox, Some((1, 1, 4, 3)));
     let set: Vec<usize> = (0..30).filter(|&i| mask[i]).collect();
     assert_eq!(set, vec![6 + 2, 2 * 6 + 4, 3 * 6 + 1]);

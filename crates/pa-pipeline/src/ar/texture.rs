@@ -62,17 +62,32 @@ pub(super) struct Textured {
 /// An inclusive pixel box `(x0, y0, x1, y1)`.
 pub(super) type Bbox = (usize, usize, usize, usize);
 
-/// The full-frame mask of a CPU visibility buffer's surfaces, and its bounding box; work
-/// proportional to the buffer's dirty rectangle (the rest is a zeroed allocation).
-pub(super) fn mask_of_vis(v: &pa_raster::VisBuffer) -> (Vec<bool>, Option<Bbox>) {
+/// The full-frame mask of a CPU visibility buffer's surfaces, written into `mask` (any
+/// buffer: made the frame's size, all false outside the surfaces), and its bounding box; work
+/// proportional to the buffer's dirty rectangle, rows in parallel.
+pub(super) fn mask_from_vis(v: &pa_raster::VisBuffer, mask: &mut Vec<bool>) -> Option<Bbox> {
+    use rayon::prelude::*;
     let w = v.width as usize;
-    let mut mask = vec![false; w * v.height as usize];
-    let b = v.dirty.and_then(|r| {
-        let (x0, x1) = (r.x0 as usize, r.x1 as usize);
-        let rows = (r.y0 as usize..=r.y1 as usize).map(|y| (y, x0, y * w + x0..y * w + x1 + 1));
-        mask_rows(rows, &mut mask, |row| &v.inv_z[row], |&iz| iz > 0.0)
-    });
-    (mask, b)
+    mask.clear();
+    mask.resize(w * v.height as usize, false);
+    let r = v.dirty?;
+    let (x0, x1, y0) = (r.x0 as usize, r.x1 as usize, r.y0 as usize);
+    let rows = y0 * w..(r.y1 as usize + 1) * w;
+    // Each row set without branches, then its first and last set column.
+    mask[rows.clone()]
+        .par_chunks_mut(w)
+        .zip(v.inv_z[rows].par_chunks(w))
+        .enumerate()
+        .filter_map(|(k, (m, iz))| {
+            let m = &mut m[x0..=x1];
+            for (m, &iz) in m.iter_mut().zip(&iz[x0..=x1]) {
+                *m = iz > 0.0;
+            }
+            let first = m.iter().position(|&c| c)?;
+            let last = m.iter().rposition(|&c| c)?;
+            Some((x0 + first, y0 + k, x0 + last, y0 + k))
+        })
+        .reduce_with(|a, b| (a.0.min(b.0), a.1.min(b.1), a.2.max(b.2), a.3.max(b.3)))
 }
 
 /// Sets `mask` where `covered` holds for the values of the given rows and returns the bounding
@@ -443,7 +458,8 @@ impl ArPipeline {
                     &key_meshes,
                     &pa_raster::Shading::Albedo,
                 );
-                let (mask, bbox) = mask_of_vis(cpu.key_colour.twin_depth());
+                let mut mask = self.spare.take_mask();
+                let bbox = mask_from_vis(cpu.key_colour.twin_depth(), &mut mask);
                 let gain = colour_gain(rgba8, &cpu.key_colour.twin_image().rgba8, &mask);
                 params.fallback_irradiance = Irradiance::constant(gain).rows;
                 (mask, bbox)
@@ -456,7 +472,9 @@ impl ArPipeline {
                     .collect();
                 cpu.renderer
                     .render_key_depth(&camera, camera_from_marker, &key_meshes);
-                mask_of_vis(cpu.renderer.key_depth())
+                let mut mask = self.spare.take_mask();
+                let bbox = mask_from_vis(cpu.renderer.key_depth(), &mut mask);
+                (mask, bbox)
             }
         };
         let (key_mask, key_bbox) = key_vis;
@@ -561,10 +579,11 @@ impl ArPipeline {
         }
         let image = cpu.renderer.shade_twin(&meshes, &shading);
         let live_counts = image.counts();
-        let live_codes = image.codes.clone();
+        let live_codes = self.spare.codes_copy(&image.codes);
         // Lent to the composite, given back after it (see render_frame).
         let twin_rgba = cpu.renderer.take_twin_rgba();
-        let (twin_mask, twin_bbox) = mask_of_vis(cpu.renderer.twin_depth());
+        let mut twin_mask = self.spare.take_mask();
+        let twin_bbox = mask_from_vis(cpu.renderer.twin_depth(), &mut twin_mask);
         debug_assert_eq!(twin_rgba.len(), n * 4);
         timings.texture_ms = ms(t);
         Ok(Textured {

@@ -485,8 +485,8 @@ fn run_config(
 
     bar.set_message("warming up");
     for f in &frames[..plan.warmup as usize] {
-        let (out, _) = run_frame(&mut pipe, renderer, &scene, f)?;
-        pipe.recycle(out.rgba8);
+        let (mut out, _) = run_frame(&mut pipe, renderer, &scene, f)?;
+        pipe.recycle_frame(&mut out);
         bar.inc(1);
     }
 
@@ -508,15 +508,17 @@ fn run_config(
     let mut outputs = Vec::with_capacity(plan.frames as usize);
     for f in &frames[plan.warmup as usize..] {
         let (mut out, sample) = run_frame(&mut pipe, renderer, &scene, f)?;
-        // Keep what the measurement needs (a copy of the image, and the pose), drop the
-        // masks, and hand the image back as a live loop that shows it would.
-        if let Some(mut image) = held_images.next() {
-            image.copy_from_slice(&out.rgba8);
-            pipe.recycle(std::mem::replace(&mut out.rgba8, image));
-        }
-        out.twin_mask = Vec::new();
-        out.key_mask = Vec::new();
-        out.live_codes = Vec::new();
+        // Keep what the measurement needs (a copy of the image, and the pose), and hand the
+        // image, masks and codes back as a live loop that shows the frame would.
+        let kept = match held_images.next() {
+            Some(mut image) => {
+                image.copy_from_slice(&out.rgba8);
+                image
+            }
+            None => out.rgba8.clone(),
+        };
+        pipe.recycle_frame(&mut out);
+        out.rgba8 = kept;
         outputs.push(out);
         samples.push(sample);
         bar.inc(1);
