@@ -114,19 +114,33 @@ pub struct ArPipeline {
     memory: memory::TextureMemory,
     /// The board's surfaces for the patch fill, and their label map ([`surfaces`]).
     surfaces: Option<(BoardSurfaces, Option<Mask>)>,
-    /// An output buffer handed back by [`ArPipeline::recycle`], reused by the next frame
-    /// (empty until then).
-    spare_rgba8: Vec<u8>,
-    /// Masks and a code buffer handed back by [`ArPipeline::recycle_frame`].
+    /// Frame-sized buffers handed back by [`ArPipeline::recycle`] and
+    /// [`ArPipeline::recycle_frame`], reused by the next frame (empty until then).
     spare: SpareBuffers,
 }
 
-/// Frame-sized buffers a caller handed back, for the next frame's masks and codes (a fresh
-/// buffer costs a page fault per 4 KiB it touches).
+/// Frame-sized buffers a caller handed back, for the next frame's image, masks and codes (a
+/// fresh buffer costs a page fault per 4 KiB it touches).
 #[derive(Default)]
 pub(super) struct SpareBuffers {
+    rgba8: Vec<u8>,
     masks: Vec<Vec<bool>>,
     codes: Vec<u8>,
+}
+
+/// `src` copied into the memory of `spare` (taken out of it; a new buffer when it is empty).
+fn copy_into_spare<T: Copy>(spare: &mut Vec<T>, src: &[T]) -> Vec<T> {
+    let mut copy = std::mem::take(spare);
+    copy.clear();
+    copy.extend_from_slice(src);
+    copy
+}
+
+/// Keeps `v` as the spare when it holds more memory than the spare there.
+fn keep_larger<T>(spare: &mut Vec<T>, v: Vec<T>) {
+    if v.capacity() > spare.capacity() {
+        *spare = v;
+    }
 }
 
 impl SpareBuffers {
@@ -145,10 +159,7 @@ impl SpareBuffers {
 
     /// A copy of `codes` in the recycled code buffer, or a new one.
     pub(super) fn codes_copy(&mut self, codes: &[u8]) -> Vec<u8> {
-        let mut c = std::mem::take(&mut self.codes);
-        c.clear();
-        c.extend_from_slice(codes);
-        c
+        copy_into_spare(&mut self.codes, codes)
     }
 }
 
@@ -242,7 +253,6 @@ impl ArPipeline {
             hide: None,
             memory: memory::TextureMemory::default(),
             surfaces: None,
-            spare_rgba8: Vec::new(),
             spare: SpareBuffers::default(),
         })
     }
@@ -326,9 +336,7 @@ impl ArPipeline {
     /// buffer costs a page fault per 4 KiB on first touch (about 2 ms a frame at 1280x720 on
     /// our 2-core machine, more than the copy itself).
     pub fn recycle(&mut self, rgba8: Vec<u8>) {
-        if rgba8.capacity() > self.spare_rgba8.capacity() {
-            self.spare_rgba8 = rgba8;
-        }
+        keep_larger(&mut self.spare.rgba8, rgba8);
     }
 
     /// Hands every frame-sized buffer of a processed frame back (its image, masks and codes,
@@ -338,21 +346,17 @@ impl ArPipeline {
     pub fn recycle_frame(&mut self, frame: &mut ArFrame) {
         self.recycle(std::mem::take(&mut frame.rgba8));
         for m in [&mut frame.twin_mask, &mut frame.key_mask] {
+            let m = std::mem::take(m);
             if self.spare.masks.len() < 2 && !m.is_empty() {
-                self.spare.masks.push(std::mem::take(m));
+                self.spare.masks.push(m);
             }
         }
-        if frame.live_codes.capacity() > self.spare.codes.capacity() {
-            self.spare.codes = std::mem::take(&mut frame.live_codes);
-        }
+        keep_larger(&mut self.spare.codes, std::mem::take(&mut frame.live_codes));
     }
 
     /// A copy of `rgba8` in the recycled buffer ([`ArPipeline::recycle`]), or a new one.
     fn copy_of(&mut self, rgba8: &[u8]) -> Vec<u8> {
-        let mut copy = std::mem::take(&mut self.spare_rgba8);
-        copy.clear();
-        copy.extend_from_slice(rgba8);
-        copy
+        copy_into_spare(&mut self.spare.rgba8, rgba8)
     }
 
     /// Sets the clean plate (the set without the prop) and the camera pose it was taken from.
