@@ -126,6 +126,10 @@ pub struct Args {
     /// the board again and hides it back.
     #[command(flatten)]
     pub hide: crate::cmd::run::hide::HideArgs,
+    /// How each frame's tags are found (a shot's input; the built-in scene is tracked with
+    /// the full detector).
+    #[arg(long, value_enum, default_value_t = crate::cmd::track::Tracking::Full)]
+    pub tracking: crate::cmd::track::Tracking,
 }
 
 /// The command's long help: what it does and the keys.
@@ -855,6 +859,11 @@ pub fn run(args: Args) -> Result<()> {
     if args.shot.is_none() && args.hide.overrides() != Default::default() {
         bail!("--hide and --cover are for a shot (its board): `propsalive preview SHOT.toml --input ... --hide cover --cover FILE`");
     }
+    if args.shot.is_none() && args.tracking != crate::cmd::track::Tracking::Full {
+        bail!(
+            "--tracking is for a shot's input; the built-in scene is tracked by the full detector"
+        );
+    }
     if args.shot.is_some() && args.size.is_some() {
         bail!("--size is for the built-in scene; stills are shown at their own size");
     }
@@ -869,6 +878,7 @@ pub fn run(args: Args) -> Result<()> {
                 args.camera_size.as_deref(),
                 &args.diminish,
                 &args.hide,
+                args.tracking,
             )?
         }
         (Some(_), None) => bail!(

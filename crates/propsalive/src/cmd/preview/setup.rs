@@ -12,7 +12,7 @@ use pa_pipeline::ar::{ArPipeline, ArSettings};
 use pa_pipeline::shot::Shot;
 use pa_pipeline::shot_config;
 use pa_render::Renderer;
-use pa_track::{DetectorConfig, Tracker, TrackerConfig};
+use pa_track::{Tracker, TrackerConfig};
 
 use super::source::{CameraSource, FrameSource, SceneSource, StillsSource, VideoSource};
 use super::state::{KeyPose, PreviewState};
@@ -147,6 +147,7 @@ pub fn setup_shot(
     camera_size: Option<&str>,
     flags: &DiminishArgs,
     hide_flags: &run::hide::HideArgs,
+    tracking: run::Tracking,
 ) -> Result<Setup> {
     let shot = Shot::load(shot_path)?;
     let d = flags.resolve(&shot, shot_path)?;
@@ -232,12 +233,7 @@ pub fn setup_shot(
         TrackerConfig::per_still()
     };
     let board_for_plate = board.clone();
-    let tracker = Tracker::new(
-        camera,
-        target.clone(),
-        DetectorConfig::default(),
-        tracker_cfg,
-    )?;
+    let tracker = Tracker::new(camera, target.clone(), tracking.detector(), tracker_cfg)?;
     let last = last_frame(&model, animation, shot.fps);
     let plate = match diminish::plate_file(&d, first_still.as_deref())? {
         Some(p) => Some(diminish::load_plate(&p, camera, &target, width, height)?),

@@ -71,7 +71,7 @@ use pa_take::{
     InputSource, Next, Opened, PassSet, Plan, ResolvedInput, Still, Take, TakeSettings, TakeSource,
     Tally, Timings,
 };
-use pa_track::{Board, DetectorConfig, TrackTarget, Tracker, TrackerConfig};
+use pa_track::{Board, TrackTarget, Tracker, TrackerConfig};
 use pa_video::{Fps, Mp4Writer};
 
 pub mod diminish;
@@ -136,28 +136,8 @@ pub struct Args {
     pub tracking: Tracking,
 }
 
-/// `run --tracking`: the tag detector of every still.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum Tracking {
-    /// The default detector's full-resolution passes: the most accurate (on noisy 1280x720
-    /// stills, corners 0.26 px off the truth, about 50 ms a still on 2 cores; on clean ones
-    /// about 3 ms).
-    #[default]
-    Full,
-    /// The quad search at half resolution, each quad's edges refined at full resolution (as
-    /// the AprilTag C library at `quad_decimate = 2`): about 9 ms a noisy 1280x720 still,
-    /// corners 0.33 px off the truth; tags under about 27 px a side are missed.
-    Fast,
-}
-
-impl Tracking {
-    fn detector(self) -> DetectorConfig {
-        match self {
-            Tracking::Full => DetectorConfig::default(),
-            Tracking::Fast => DetectorConfig::fast(),
-        }
-    }
-}
+/// `--tracking` of `run`, `track` and `preview` (defined with `track`).
+pub use crate::cmd::track::Tracking;
 
 // --- input ---------------------------------------------------------------------------------
 
