@@ -10,7 +10,9 @@
 //! darkened (median colour inside over the lit ring around it, [`pa_diminish::shadow`]) in
 //! the sense that its darkening explains the most of the observed luminance, wins,
 //! on a coarse grid of directions then a finer one around the best, and only when the
-//! darkening is measurable ([`MAX_SHADOW_LUMINANCE`]). The softness is then the Gaussian
+//! darkening is measurable ([`MAX_SHADOW_LUMINANCE`]) and its outline agrees (pairs across
+//! it darken alike); when the outline vetoes the best direction (dark print or wood beside
+//! the prop), the next distinct peak of the coarse scores is refined and tried. The softness is then the Gaussian
 //! width that best explains the observed penumbra. Pixel image math stays in
 //! `pa-diminish`; this module knows meshes and cameras.
 
@@ -22,6 +24,7 @@ use pa_diminish::shadow::{
 };
 use pa_diminish::{DiminishError, ImageRgba8, Mask};
 use pa_model::{anim::Pose, Model};
+use rayon::prelude::*;
 
 /// The set's key light as the shadows see it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -247,34 +250,101 @@ pub fn estimate_light(
         .filter(|s| s.1.luminance() <= MAX_SHADOW_LUMINANCE)
         .map(|s| s.0))
     };
-    let mut best: Option<(f32, f32, f32)> = None;
-    let keep = |best: &mut Option<(f32, f32, f32)>, s: Option<f32>, az: f32, el: f32| {
-        if let Some(s) = s {
-            if best.is_none_or(|b| s > b.0) {
-                *best = Some((s, az, el));
+    search_light(score_of, |az, el| {
+        light_along(
+            frame,
+            key_triangles,
+            camera,
+            camera_from_marker,
+            exclude,
+            az,
+            el,
+        )
+    })
+}
+
+/// [`estimate_light`]'s search, given how a direction `(azimuth, elevation)` scores and
+/// whether a refined one gives a light: the coarse grid (every 15 degrees of azimuth,
+/// 20..80 degrees of elevation), then around its best-scoring direction a finer grid,
+/// twice, at a third of the step each time; when the refined direction gives no light (its
+/// outline vetoes it: dark print or wood posing as a shadow), the same around the next
+/// distinct peak of the coarse scores, [`MAX_LIGHT_CANDIDATES`] at most.
+fn search_light<E: Send>(
+    score_of: impl Fn(f32, f32) -> Result<Option<f32>, E> + Sync,
+    light_at: impl Fn(f32, f32) -> Result<Option<ShadowLight>, E>,
+) -> Result<Option<ShadowLight>, E> {
+    // The directions of a grid are scored on the pool's threads, in the grid's order.
+    let scored = |dirs: Vec<(f32, f32)>| -> Result<Vec<(f32, f32, f32)>, E> {
+        let scores: Vec<Result<Option<f32>, E>> =
+            dirs.par_iter().map(|&(az, el)| score_of(az, el)).collect();
+        let mut out = Vec::with_capacity(dirs.len());
+        for ((az, el), s) in dirs.into_iter().zip(scores) {
+            if let Some(s) = s? {
+                out.push((s, az, el));
             }
         }
+        Ok(out)
     };
-    // Coarse: every 15 degrees of azimuth, 20..80 degrees of elevation.
-    for ei in 0..7 {
-        for ai in 0..24 {
-            let (az, el) = (ai as f32 * 15.0, 20.0 + ei as f32 * 10.0);
-            keep(&mut best, score_of(az, el)?, az, el);
+    let grid = (0..7)
+        .flat_map(|ei| (0..24).map(move |ai| (ai as f32 * 15.0, 20.0 + ei as f32 * 10.0)))
+        .collect();
+    let mut coarse = scored(grid)?;
+    // Stable: equal scores keep the grid's order.
+    coarse.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut tried: Vec<(f32, f32)> = Vec::new();
+    for &(s0, a0, e0) in &coarse {
+        if tried.len() >= MAX_LIGHT_CANDIDATES {
+            break;
         }
-    }
-    // Fine: around the best, twice, at a third of the step each time.
-    for (da, de) in [(5.0f32, 10.0 / 3.0), (5.0 / 3.0, 10.0 / 9.0)] {
-        let Some((_, a0, e0)) = best else { break };
-        for i in -2..=2 {
-            for j in -2..=2 {
-                let (az, el) = (a0 + i as f32 * da, (e0 + j as f32 * de).clamp(5.0, 89.0));
-                keep(&mut best, score_of(az, el)?, az, el);
+        if tried.iter().any(|&t| coarse_neighbours(t, (a0, e0))) {
+            continue;
+        }
+        tried.push((a0, e0));
+        let mut best = (s0, a0, e0);
+        for (da, de) in [(5.0f32, 10.0 / 3.0), (5.0 / 3.0, 10.0 / 9.0)] {
+            let (_, a0, e0) = best;
+            let fine = (-2..=2)
+                .flat_map(|i| (-2..=2).map(move |j| (i, j)))
+                .map(|(i, j)| (a0 + i as f32 * da, (e0 + j as f32 * de).clamp(5.0, 89.0)))
+                .collect();
+            for (s, az, el) in scored(fine)? {
+                if s > best.0 {
+                    best = (s, az, el);
+                }
             }
         }
+        let light = light_at(best.1, best.2)?;
+        if light.is_some() {
+            return Ok(light);
+        }
     }
-    let Some((_, az, el)) = best else {
-        return Ok(None);
-    };
+    Ok(None)
+}
+
+/// Coarse directions [`estimate_light`] tries at most, each a distinct peak of the coarse
+/// scores, before it gives up on the frame.
+pub const MAX_LIGHT_CANDIDATES: usize = 4;
+
+/// Whether two directions `(azimuth, elevation)` of [`estimate_light`]'s coarse grid are the
+/// same cell or neighbours (one step of 15 degrees of azimuth, 10 of elevation): a
+/// neighbour of a tried candidate belongs to its peak.
+fn coarse_neighbours((a0, e0): (f32, f32), (a1, e1): (f32, f32)) -> bool {
+    let da = (a0 - a1).rem_euclid(360.0);
+    da.min(360.0 - da) <= 15.5 && (e0 - e1).abs() <= 10.5
+}
+
+/// The light toward `(az, el)` (degrees): its softness and ratio fitted on the frame, or
+/// `None` when the shadow it predicts is not measurably darker (across its outline where
+/// enough of it is in view, else over its softened region).
+fn light_along(
+    frame: &ImageRgba8,
+    key_triangles: &[[Vec3; 3]],
+    camera: &CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &Mask,
+    az: f32,
+    el: f32,
+) -> Result<Option<ShadowLight>, DiminishError> {
     let dir = toward_light(az, el);
     let (w, h) = frame.size();
     let margin = RING_PX + (3.0 * SOFTNESS_CANDIDATES_PX[6]).ceil() as u32;

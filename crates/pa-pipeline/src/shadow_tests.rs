@@ -259,3 +259,55 @@ fn cast_shadow_matches_the_rendered_one() {
     println!("cast vs rendered shadow: {with:.1} dB (no shadow: {without:.1} dB)");
     assert!(with > 30.0 && with > without + 10.0, "{with} vs {without}");
 }
+
+/// Regression (CesiumMan, Blender Cycles set): dark wood and tag print beside the prop
+/// explained more darkening along another direction than the real shadow did; the outline
+/// vetoed that direction and the estimate gave up, so on 13 of 16 stills no light was known
+/// and nothing was lifted or cast. Now the next distinct peak of the coarse scores is tried.
+/// Scores here: two smooth peaks, a higher one at (290, 40) degrees that the outline vetoes
+/// and the true light's at (200, 40).
+#[test]
+fn regression_a_vetoed_best_direction_falls_back_to_the_next_peak() {
+    let (false_peak, true_peak) = (toward_light(290.0, 40.0), toward_light(200.0, 40.0));
+    let score_of = |az: f32, el: f32| -> Result<Option<f32>, ()> {
+        let d = toward_light(az, el);
+        let bump = |p: Vec3, h: f32| h * (-(d.angle_between(p).to_degrees() / 20.0).powi(2)).exp();
+        Ok(Some(bump(false_peak, 2.0) + bump(true_peak, 1.0)))
+    };
+    let light_of = |az: f32, el: f32| ShadowLight {
+        toward_light: toward_light(az, el),
+        softness_px: 1.0,
+        ratio_rgb: [0.5; 3],
+    };
+    let calls = std::cell::Cell::new(0);
+    let vetoing = |az: f32, el: f32| -> Result<Option<ShadowLight>, ()> {
+        calls.set(calls.get() + 1);
+        let vetoed = toward_light(az, el).angle_between(false_peak).to_degrees() < 10.0;
+        Ok((!vetoed).then(|| light_of(az, el)))
+    };
+    let found = search_light(score_of, vetoing)
+        .expect("search")
+        .expect("a light");
+    let off = found.toward_light.angle_between(true_peak).to_degrees();
+    println!(
+        "found {:?}, {off:.2} degrees off, {} candidates",
+        found.toward_light,
+        calls.get()
+    );
+    assert!(off < 2.0, "{off} degrees off the true light");
+    assert_eq!(calls.get(), 2, "the vetoed peak, then the true one");
+    // Without a veto the higher peak wins (the fallback is what finds the true light).
+    let first = search_light(score_of, |az, el| Ok::<_, ()>(Some(light_of(az, el))))
+        .expect("search")
+        .expect("a light");
+    assert!(first.toward_light.angle_between(false_peak).to_degrees() < 2.0);
+    // Everything vetoed: no light, after at most MAX_LIGHT_CANDIDATES refinements.
+    calls.set(0);
+    let none = search_light(score_of, |_, _| {
+        calls.set(calls.get() + 1);
+        Ok::<Option<ShadowLight>, ()>(None)
+    })
+    .expect("search");
+    assert_eq!(none, None);
+    assert_eq!(calls.get(), MAX_LIGHT_CANDIDATES);
+}
