@@ -17,11 +17,12 @@ fn regressions() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/regressions")
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pa-camera-hostile-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+/// A fresh folder, removed with everything in it when dropped.
+fn tmpdir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("pa-camera-hostile-{name}-"))
+        .tempdir()
+        .expect("temp dir")
 }
 
 /// Runs `f` on its own thread and fails the test if it does not return within 20 s (a read
@@ -125,7 +126,8 @@ fn a_long_multiline_flow_sequence_parses_in_linear_time() {
 
 #[test]
 fn a_fifo_is_refused_at_once() {
-    let d = tmpdir("fifo");
+    let tmp = tmpdir("fifo");
+    let d = tmp.path();
     for name in ["calib.yaml", "calib.toml", "calib.json", "calib"] {
         let fifo = d.join(name);
         pa_testkit::hostile::mkfifo(&fifo);
@@ -144,7 +146,6 @@ fn a_fifo_is_refused_at_once() {
         .expect("still there")
         .file_type()
         .is_fifo());
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 #[test]
@@ -154,16 +155,17 @@ fn a_device_or_folder_is_refused() {
         msg.contains("/dev/zero") && msg.contains("character device"),
         "{msg}"
     );
-    let d = tmpdir("folder");
-    let msg = load_err(&d);
+    let tmp = tmpdir("folder");
+    let d = tmp.path();
+    let msg = load_err(d);
     assert!(msg.contains("folder"), "{msg}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// A file over the budget is refused before it is read (a sparse file: no disk is used).
 #[test]
 fn a_file_over_the_budget_is_refused_unread() {
-    let d = tmpdir("budget");
+    let tmp = tmpdir("budget");
+    let d = tmp.path();
     for (name, size) in [("big.yaml", BUDGET + 1), ("huge.toml", 1 << 30)] {
         let p = d.join(name);
         let f = std::fs::File::create(&p).expect("create");
@@ -175,7 +177,6 @@ fn a_file_over_the_budget_is_refused_unread() {
         );
         assert!(msg.contains(&BUDGET.to_string()), "{msg}");
     }
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// NaN, infinities, non-positive focal lengths and absurd sizes, in every format, name the

@@ -365,11 +365,12 @@ impl Drop for FileLock {
 mod tests {
     use super::*;
 
-    fn tmpdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("pa-io-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).expect("temp dir");
-        d
+    /// A fresh folder, removed with everything in it when dropped.
+    fn tmpdir(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("pa-io-{name}-"))
+            .tempdir()
+            .expect("temp dir")
     }
 
     fn mkfifo(p: &Path) {
@@ -383,7 +384,8 @@ mod tests {
 
     #[test]
     fn reading_a_fifo_fails_at_once_naming_it() {
-        let d = tmpdir("fifo-read");
+        let tmp = tmpdir("fifo-read");
+        let d = tmp.path();
         let fifo = d.join("model.gltf");
         mkfifo(&fifo);
         let e = read_regular(&fifo, 1 << 20, "a glTF file").expect_err("a FIFO");
@@ -396,14 +398,16 @@ mod tests {
     fn reading_a_device_or_folder_fails() {
         let e = read_regular(Path::new("/dev/zero"), 1 << 20, "x").expect_err("device");
         assert!(e.to_string().contains("character device"), "{e}");
-        let d = tmpdir("dir-read");
-        let e = read_regular(&d, 1 << 20, "x").expect_err("folder");
+        let tmp = tmpdir("dir-read");
+        let d = tmp.path();
+        let e = read_regular(d, 1 << 20, "x").expect_err("folder");
         assert!(e.to_string().contains("folder"), "{e}");
     }
 
     #[test]
     fn a_file_over_the_budget_is_refused_before_reading() {
-        let d = tmpdir("budget");
+        let tmp = tmpdir("budget");
+        let d = tmp.path();
         let p = d.join("big.yaml");
         std::fs::write(&p, vec![b'a'; 1000]).expect("write");
         let e = read_regular(&p, 999, "a calibration file").expect_err("too large");
@@ -423,7 +427,8 @@ mod tests {
 
     #[test]
     fn atomic_write_never_replaces_a_fifo_or_symlink() {
-        let d = tmpdir("write");
+        let tmp = tmpdir("write");
+        let d = tmp.path();
         let fifo = d.join("out.json");
         mkfifo(&fifo);
         let e = write_atomic(&fifo, b"{}").expect_err("a FIFO is kept");
@@ -438,7 +443,7 @@ mod tests {
         assert!(write_atomic(&link, b"new").is_err());
         assert_eq!(std::fs::read(&target).expect("read"), b"keep");
         // No temporary files are left behind.
-        let left: Vec<_> = std::fs::read_dir(&d)
+        let left: Vec<_> = std::fs::read_dir(d)
             .expect("list")
             .filter_map(|e| e.ok())
             .filter(|e| is_temp_name(&e.file_name().to_string_lossy()))
@@ -448,7 +453,8 @@ mod tests {
 
     #[test]
     fn atomic_write_replaces_a_regular_file() {
-        let d = tmpdir("replace");
+        let tmp = tmpdir("replace");
+        let d = tmp.path();
         let p = d.join("a.txt");
         write_atomic(&p, b"one").expect("first");
         write_atomic(&p, b"two").expect("second");
@@ -460,7 +466,8 @@ mod tests {
 
     #[test]
     fn a_second_lock_fails_naming_the_holder() {
-        let d = tmpdir("lock");
+        let tmp = tmpdir("lock");
+        let d = tmp.path();
         let p = d.join(".lock");
         let first = FileLock::try_acquire(&p, "propsalive run, pid 1").expect("first");
         let e = FileLock::try_acquire(&p, "propsalive run, pid 2").expect_err("held");

@@ -197,16 +197,18 @@ pub(crate) fn check(shot: &Shot, shot_path: &Path) -> Result<(), ShotError> {
 mod tests {
     use super::*;
 
-    fn folder(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("pa-shot-hide-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).expect("dir");
-        d
+    /// A fresh folder, removed with everything in it when dropped.
+    fn folder(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("pa-shot-hide-{name}-"))
+            .tempdir()
+            .expect("dir")
     }
 
     #[test]
     fn names_flags_and_paths() {
-        let d = folder("names");
+        let tmp = folder("names");
+        let d = tmp.path();
         let shot = d.join("shot.toml");
         std::fs::write(d.join("rug.png"), b"x").expect("write");
         let none = resolve(None, None, &HideOverrides::default(), &shot, false).expect("none");
@@ -336,9 +338,11 @@ mod tests {
 
     #[test]
     fn a_cover_outside_the_shots_folder_is_refused() {
-        let d = folder("escape");
+        let tmp = folder("escape");
+        let d = tmp.path();
         let shot = d.join("shot.toml");
-        let outside = folder("escape-outside").join("secret.png");
+        let outside_dir = folder("escape-outside");
+        let outside = outside_dir.path().join("secret.png");
         std::fs::write(&outside, b"x").expect("write");
         let msg = |p: &Path| {
             resolve(

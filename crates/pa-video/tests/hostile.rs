@@ -348,8 +348,11 @@ fn regression_frames_below_16x16_are_refused_up_front() {
     let e = pa_video::Mp4Writer::check_frame_size(12, 12).expect_err("too small");
     assert!(e.to_string().contains("16x16"), "{e}");
     assert!(pa_video::Mp4Writer::check_frame_size(16, 16).is_ok());
-    let dir = std::env::temp_dir().join(format!("pa_video_small_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("mkdir");
+    let tmp = tempfile::Builder::new()
+        .prefix("pa_video_small_")
+        .tempdir()
+        .expect("mkdir");
+    let dir = tmp.path();
     let opts = pa_video::Mp4WriterOptions::new(pa_video::Fps::new(24, 1).expect("fps"));
     assert!(pa_video::Mp4Writer::create(dir.join("s.mp4"), 8, 8, opts).is_err());
 }
@@ -358,9 +361,11 @@ fn regression_frames_below_16x16_are_refused_up_front() {
 #[test]
 fn regression_overwrite_never_replaces_a_fifo() {
     use std::os::unix::fs::FileTypeExt;
-    let dir = std::env::temp_dir().join(format!("pa_video_fifo_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("mkdir");
+    let tmp = tempfile::Builder::new()
+        .prefix("pa_video_fifo_")
+        .tempdir()
+        .expect("mkdir");
+    let dir = tmp.path();
     let fifo = dir.join("out.mp4");
     let ok = std::process::Command::new("mkfifo")
         .arg(&fifo)
@@ -380,9 +385,11 @@ fn regression_overwrite_never_replaces_a_fifo() {
 /// Regression (issue 11): a FIFO named like a video blocked `track` forever in `open`.
 #[test]
 fn regression_a_fifo_as_a_video_is_refused_at_once() {
-    let dir = std::env::temp_dir().join(format!("pa_video_fifo_in_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("mkdir");
+    let tmp = tempfile::Builder::new()
+        .prefix("pa_video_fifo_in_")
+        .tempdir()
+        .expect("mkdir");
+    let dir = tmp.path();
     let fifo = dir.join("take.mp4");
     let ok = std::process::Command::new("mkfifo")
         .arg(&fifo)

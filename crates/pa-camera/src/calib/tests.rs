@@ -220,8 +220,11 @@ fn toml_and_json_round_trip_and_files() {
         let back = parse_calibration(&text, fmt, "mem").expect("parses");
         assert_eq!(back, m, "{fmt:?}\n{text}");
     }
-    let dir = std::env::temp_dir().join(format!("pa-camera-calib-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let tmp = tempfile::Builder::new()
+        .prefix("pa-camera-calib-")
+        .tempdir()
+        .expect("temp dir");
+    let dir = tmp.path();
     for name in ["c.yaml", "c.yml", "c.toml", "c.json"] {
         let p = dir.join(name);
         save_calibration(&m, &p).expect("saves");
@@ -231,5 +234,4 @@ fn toml_and_json_round_trip_and_files() {
     assert!(matches!(e, CalibError::UnknownFormat { .. }));
     let e = load_calibration(dir.join("missing.yaml")).unwrap_err();
     assert!(matches!(e, CalibError::Io(_)) && e.to_string().contains("missing.yaml"));
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -178,9 +178,13 @@ fn non_json_and_wrong_files_are_typed_errors() {
             ..
         }
     ));
-    let dir = std::env::temp_dir().join(format!("pa-set-test-{}", std::process::id()));
+    let tmp = tempfile::Builder::new()
+        .prefix("pa-set-test-")
+        .tempdir()
+        .expect("temp dir");
+    let dir = tmp.path();
     std::fs::create_dir_all(dir.join("manifest.json")).expect("dir");
-    let e = SetManifest::read(&dir).expect_err("a folder");
+    let e = SetManifest::read(dir).expect_err("a folder");
     assert!(
         matches!(&e, crate::SceneError::Set { problem: SetProblem::NotAFile, file } if file.ends_with("manifest.json")),
         "{e}"
@@ -221,7 +225,6 @@ fn non_json_and_wrong_files_are_typed_errors() {
             ..
         }
     ));
-    std::fs::remove_dir_all(&dir).expect("clean up");
 }
 
 #[test]

@@ -123,15 +123,18 @@ pub fn apply(
 mod tests {
     use super::*;
 
-    fn dir() -> PathBuf {
-        let d = std::env::temp_dir().join(format!("pa-run-hide-{}", std::process::id()));
-        std::fs::create_dir_all(&d).expect("dir");
-        d
+    /// A fresh folder, removed with everything in it when dropped.
+    fn dir() -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix("pa-run-hide-")
+            .tempdir()
+            .expect("dir")
     }
 
     #[test]
     fn bad_covers_are_refused_with_the_file_named() {
-        let d = dir();
+        let tmp = dir();
+        let d = tmp.path();
         let text = d.join("notes.png");
         std::fs::write(&text, b"not a picture at all").expect("write");
         let e = format!("{:#}", read_cover(&text).expect_err("not an image"));
