@@ -12,9 +12,9 @@
 //! on a coarse grid of directions then a finer one around the best, and only when the
 //! darkening is measurable ([`MAX_SHADOW_LUMINANCE`]) and its outline agrees (pairs across
 //! it darken alike); when the outline vetoes the best direction (dark print or wood beside
-//! the prop), the next distinct peak of the coarse scores is refined and tried. The softness is then the Gaussian
-//! width that best explains the observed penumbra. Pixel image math stays in
-//! `pa-diminish`; this module knows meshes and cameras.
+//! the prop), the next distinct peak of the coarse scores is refined and tried. The softness
+//! is then the Gaussian width that best explains the observed penumbra. Pixel image math
+//! stays in `pa-diminish`; this module knows meshes and cameras.
 
 use glam::{Mat4, Vec3};
 use pa_camera::CameraModel;
