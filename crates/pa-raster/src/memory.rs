@@ -109,11 +109,9 @@ impl VertexMemory {
 
     /// Per-channel weighted variance of vertex `i`.
     pub fn variance(&self, i: usize) -> [f32; 3] {
-        let w = self.weight(i);
-        if w > 0.0 {
-            self.m2[i].map(|m| m / w)
-        } else {
-            [0.0; 3]
+        match self.m2.get(i) {
+            Some(m2) => variance_of(self.weight(i), m2),
+            None => [0.0; 3],
         }
     }
 
@@ -217,6 +215,16 @@ impl VertexMemory {
     }
 }
 
+/// Per-channel weighted variance from a vertex's weight and sum of squared deviations (0
+/// when never seen).
+fn variance_of(weight: f32, m2: &[f32; 3]) -> [f32; 3] {
+    if weight > 0.0 {
+        m2.map(|m| m / weight)
+    } else {
+        [0.0; 3]
+    }
+}
+
 /// [`VertexMemory::add_sample`] on one vertex's `(weight, mean, m2)`.
 fn add_to(
     (weight, mean, m2): (&mut f32, &mut [f32; 3], &mut [f32; 3]),
@@ -230,7 +238,7 @@ fn add_to(
     let mut outlier = false;
     let wi = *weight;
     if wi >= ESTABLISHED_WEIGHT {
-        let var = m2.map(|m| m / wi);
+        let var = variance_of(wi, m2);
         let d2: f32 = (0..3).map(|c| (rgb[c] - mean[c]).powi(2)).sum();
         let v: f32 = var.iter().map(|v| v + MIN_SIGMA * MIN_SIGMA).sum();
         if d2 > OUTLIER_SIGMAS * OUTLIER_SIGMAS * v {

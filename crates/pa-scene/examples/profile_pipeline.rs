@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for k in 0..repeats {
         let f = &frames[k % frames.len()];
         let t0 = std::time::Instant::now();
-        let out = p
+        let mut out = p
             .process(
                 &mut renderer,
                 &f.input.rgba8,
@@ -65,7 +65,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )
             .map_err(|e| e.to_string())?;
         let s = out.timings;
-        let mut out = out;
         p.recycle_frame(&mut out);
         t.push([
             s.track_ms,

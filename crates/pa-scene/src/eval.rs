@@ -313,7 +313,7 @@ pub fn run_scene_setup<E: From<SceneError>>(
     for i in frames {
         let f = scene.frame(renderer, i).map_err(SceneError::from)?;
         let key_time = scene.spec.key_frames[f.key] as f32 / scene.spec.fps;
-        let out = pipeline
+        let mut out = pipeline
             .process(
                 renderer,
                 &f.input.rgba8,
@@ -336,7 +336,6 @@ pub fn run_scene_setup<E: From<SceneError>>(
         each(&f, &out, &m, &revealed)?;
         all.push(m);
         // Written and measured: its buffers are the next frame's.
-        let mut out = out;
         pipeline.recycle_frame(&mut out);
     }
     Ok(all)

@@ -515,7 +515,7 @@ fn run_config(
                 image.copy_from_slice(&out.rgba8);
                 image
             }
-            None => out.rgba8.clone(),
+            None => std::mem::take(&mut out.rgba8),
         };
         pipe.recycle_frame(&mut out);
         out.rgba8 = kept;
