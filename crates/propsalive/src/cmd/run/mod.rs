@@ -324,9 +324,11 @@ fn resolve(args: &Args) -> Result<(Config, InputSource)> {
             if let Some(p) = &picture_identity {
                 text.extend_from_slice(p.as_bytes());
             }
-            // Another detector gives other poses (the default hashes as before).
-            if args.tracking != Tracking::Full {
-                text.extend_from_slice(b"\n# tracking: fast");
+            // Another detector gives other poses (the default hashes as before; a new mode
+            // must name itself here).
+            match args.tracking {
+                Tracking::Full => {}
+                Tracking::Fast => text.extend_from_slice(b"\n# tracking: fast"),
             }
             hash_hex(&text)
         },
