@@ -454,16 +454,25 @@ pub struct OutlineDarkening {
     /// Median log-ratio (outside over inside luminance) times the pairs: higher = a
     /// stronger, longer shadow edge along the outline.
     pub score: f64,
+    /// The mean of the pairs' clamped log-ratios: lowered by every pair without the edge,
+    /// where the median ignores a minority of them.
+    pub mean_log: f64,
     /// Per channel, the median of the pairs' inside / outside (clamped to
     /// [[`MIN_RATIO`], 1]); its sample counts are the pairs.
     pub ratio: ShadowRatio,
 }
 
+/// Whether two frame pixels `(x, y)` show the same surface (the same print or material), for
+/// [`outline_darkening`]'s pairs: a caller that knows the set's print (the marker board) says
+/// so, and a pair across a tag's black and white is left out instead of read as a shadow.
+pub type SameSurface<'a> = &'a (dyn Fn([u32; 2], [u32; 2]) -> bool + Sync);
+
 /// The darkening across the outline of a hard matte: at every outline pixel of `hard` (weight
 /// at least 0.5 with a 4-neighbour below), the pixel `step_px` inside along the outline's
 /// normal and the one `step_px` outside are compared by the log-ratio of their linear
 /// luminances, `ln(outside / inside)` clamped to [-1.5, 1.5] (pairs with a pixel in
-/// `exclude`, beyond the rectangle, or a black outside, are skipped). The score is the
+/// `exclude`, beyond the rectangle, or a black outside, are skipped, and so are those that
+/// `same_surface`, when given, says straddle two surfaces). The score is the
 /// median log-ratio times the number of pairs; the ratio, per channel, the median of the
 /// pairs' inside / outside. `None` without pairs.
 ///
@@ -478,7 +487,78 @@ pub fn outline_darkening(
     hard: &ShadowMatte,
     step_px: f32,
     exclude: Option<&Mask>,
+    same_surface: Option<SameSurface<'_>>,
 ) -> Result<Option<OutlineDarkening>, DiminishError> {
+    let mut pairs = outline_pairs(image, hard, &[step_px], exclude, same_surface)?;
+    Ok(pairs.pop().and_then(OutlinePairs::summary))
+}
+
+/// [`outline_darkening`] at each distance of `steps_px`, in one scan of the outline.
+pub fn outline_darkenings(
+    image: &ImageRgba8,
+    hard: &ShadowMatte,
+    steps_px: &[f32],
+    exclude: Option<&Mask>,
+    same_surface: Option<SameSurface<'_>>,
+) -> Result<Vec<Option<OutlineDarkening>>, DiminishError> {
+    Ok(outline_pairs(image, hard, steps_px, exclude, same_surface)?
+        .into_iter()
+        .map(OutlinePairs::summary)
+        .collect())
+}
+
+/// The pairs of [`outline_darkening`], each as its clamped log-ratio and its per-channel
+/// inside / outside.
+#[derive(Debug, Clone, Default)]
+struct OutlinePairs {
+    logs: Vec<f32>,
+    ratios: [Vec<f32>; 3],
+}
+
+impl OutlinePairs {
+    fn len(&self) -> usize {
+        self.logs.len()
+    }
+
+    fn append(&mut self, mut other: OutlinePairs) {
+        self.logs.append(&mut other.logs);
+        for (a, b) in self.ratios.iter_mut().zip(other.ratios.iter_mut()) {
+            a.append(b);
+        }
+    }
+
+    /// [`outline_darkening`]'s summary; `None` without pairs.
+    fn summary(mut self) -> Option<OutlineDarkening> {
+        let n = self.logs.len();
+        if n == 0 {
+            return None;
+        }
+        let mut rgb = [1.0f32; 3];
+        for (c, r) in self.ratios.iter_mut().enumerate() {
+            rgb[c] = median(r).clamp(MIN_RATIO, 1.0);
+        }
+        let mean_log = self.logs.iter().map(|&v| f64::from(v)).sum::<f64>() / n as f64;
+        Some(OutlineDarkening {
+            score: f64::from(median(&mut self.logs)) * n as f64,
+            mean_log,
+            ratio: ShadowRatio {
+                rgb,
+                shadow_samples: n,
+                lit_samples: n,
+            },
+        })
+    }
+}
+
+/// The pairs across the outline of `hard` at each of `steps_px` (one scan of the outline for
+/// all): see [`outline_darkening`].
+fn outline_pairs(
+    image: &ImageRgba8,
+    hard: &ShadowMatte,
+    steps_px: &[f32],
+    exclude: Option<&Mask>,
+    same_surface: Option<SameSurface<'_>>,
+) -> Result<Vec<OutlinePairs>, DiminishError> {
     check(image, hard, exclude)?;
     let lut = decode_lut();
     let rect = hard.rect;
@@ -500,8 +580,7 @@ pub fn outline_darkening(
         Some([lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
     };
     let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
-    let mut logs: Vec<f32> = Vec::new();
-    let mut ratios: [Vec<f32>; 3] = Default::default();
+    let mut out = vec![OutlinePairs::default(); steps_px.len()];
     for ly in 0..rh {
         for lx in 0..rw {
             if !inside(lx, ly)
@@ -528,46 +607,37 @@ pub fn outline_darkening(
                 continue;
             }
             let (nx, ny) = (gx / g, gy / g);
-            let (ix, iy) = (
-                (lx as f32 - nx * step_px).round() as i64,
-                (ly as f32 - ny * step_px).round() as i64,
-            );
-            let (ox, oy) = (
-                (lx as f32 + nx * (step_px + 1.0)).round() as i64,
-                (ly as f32 + ny * (step_px + 1.0)).round() as i64,
-            );
-            if !inside(ix, iy) || inside(ox, oy) {
-                continue;
-            }
-            let (Some(ci), Some(co)) = (rgb(ix, iy), rgb(ox, oy)) else {
-                continue;
-            };
-            let (yi, yo) = (lum(ci), lum(co));
-            if yo < 1e-3 {
-                continue;
-            }
-            logs.push((yo / yi.max(1e-4)).ln().clamp(-1.5, 1.5));
-            for c in 0..3 {
-                ratios[c].push(if co[c] > 1e-4 { ci[c] / co[c] } else { 1.0 });
+            for (&step_px, pairs) in steps_px.iter().zip(out.iter_mut()) {
+                let (ix, iy) = (
+                    (lx as f32 - nx * step_px).round() as i64,
+                    (ly as f32 - ny * step_px).round() as i64,
+                );
+                let (ox, oy) = (
+                    (lx as f32 + nx * (step_px + 1.0)).round() as i64,
+                    (ly as f32 + ny * (step_px + 1.0)).round() as i64,
+                );
+                if !inside(ix, iy) || inside(ox, oy) {
+                    continue;
+                }
+                let (Some(ci), Some(co)) = (rgb(ix, iy), rgb(ox, oy)) else {
+                    continue;
+                };
+                let at = |lx: i64, ly: i64| [rect.x + lx as u32, rect.y + ly as u32];
+                if same_surface.is_some_and(|same| !same(at(ix, iy), at(ox, oy))) {
+                    continue;
+                }
+                let (yi, yo) = (lum(ci), lum(co));
+                if yo < 1e-3 {
+                    continue;
+                }
+                pairs.logs.push((yo / yi.max(1e-4)).ln().clamp(-1.5, 1.5));
+                for (c, r) in pairs.ratios.iter_mut().enumerate() {
+                    r.push(if co[c] > 1e-4 { ci[c] / co[c] } else { 1.0 });
+                }
             }
         }
     }
-    let n = logs.len();
-    if n == 0 {
-        return Ok(None);
-    }
-    let mut rgb = [1.0f32; 3];
-    for (c, r) in ratios.iter_mut().enumerate() {
-        rgb[c] = median(r).clamp(MIN_RATIO, 1.0);
-    }
-    Ok(Some(OutlineDarkening {
-        score: f64::from(median(&mut logs)) * n as f64,
-        ratio: ShadowRatio {
-            rgb,
-            shadow_samples: n,
-            lit_samples: n,
-        },
-    }))
+    Ok(out)
 }
 
 /// The median linear luminance of the lit pixels of the matte's rectangle (weight below
@@ -613,6 +683,119 @@ pub fn fit_softness(
         }
     }
     Ok(best.map(|(_, s, r)| (s, r)))
+}
+
+/// Distances (pixels past the outline) at which [`fit_outline`] compares pairs.
+pub const OUTLINE_FIT_STEPS_PX: [f32; 8] = [1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 11.0, 15.0];
+
+/// Fewest pairs, over all of [`OUTLINE_FIT_STEPS_PX`], for [`fit_outline`].
+pub const MIN_OUTLINE_FIT_PAIRS: usize = 48;
+
+/// Fewest pairs past the penumbra for [`fit_outline`] to take the darkening from them.
+pub const MIN_OUTLINE_PAST_PAIRS: usize = 16;
+
+/// What [`fit_outline`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutlineFit {
+    /// Gaussian standard deviation of the penumbra, pixels.
+    pub softness_px: f32,
+    /// Shadowed over lit, per channel: the median of the pairs past the penumbra, else the
+    /// fitted luminance ratio; its sample counts are all the pairs compared.
+    pub ratio: ShadowRatio,
+}
+
+/// The standard normal distribution function (Abramowitz and Stegun 7.1.26, error below
+/// 1.5e-7).
+fn normal_cdf(x: f64) -> f64 {
+    let z = x.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * z);
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let erf = 1.0 - poly * (-z * z).exp();
+    0.5 * (1.0 + if x < 0.0 { -erf } else { erf })
+}
+
+/// The softness and darkening of the shadow under the hard matte `hard`, from its outline
+/// alone: the median ratio of the pairs across it ([`outline_darkening`]) at each distance of
+/// [`OUTLINE_FIT_STEPS_PX`] follows, for a Gaussian penumbra of deviation `sigma` and a
+/// darkening `s`, `(1 - (1 - s) P(d / sigma)) / (1 - (1 - s) P(-d / sigma))` (`P` the normal
+/// distribution, `d` the distance from the edge); the candidate of `candidates_px` and the `s`
+/// (steps of 0.01) that fit the medians best in the log, each weighted by its pairs, win; the
+/// darkening is then the median of all pairs past the penumbra, where there are
+/// [`MIN_OUTLINE_PAST_PAIRS`] of them.
+/// Every pair compares one surface with itself a few pixels away (with `same_surface`, the
+/// same print), so the fit does not care what the table's albedo is, where the medians of
+/// [`fit_softness`] compare the shadow's surfaces with the lit ring's. `None` with fewer than
+/// [`MIN_OUTLINE_FIT_PAIRS`] pairs.
+pub fn fit_outline(
+    image: &ImageRgba8,
+    hard: &ShadowMatte,
+    candidates_px: &[f32],
+    exclude: Option<&Mask>,
+    same_surface: Option<SameSurface<'_>>,
+) -> Result<Option<OutlineFit>, DiminishError> {
+    // (distance from the edge, median luminance ratio, pairs), and each distance's pairs.
+    let mut steps: Vec<(f64, f64, usize)> = Vec::new();
+    let mut by_step: Vec<OutlinePairs> = Vec::new();
+    let all = outline_pairs(image, hard, &OUTLINE_FIT_STEPS_PX, exclude, same_surface)?;
+    for (&d, p) in OUTLINE_FIT_STEPS_PX.iter().zip(all) {
+        if let Some(o) = p.clone().summary() {
+            let r = f64::from(o.ratio.luminance()).clamp(f64::from(MIN_RATIO), 1.0);
+            // The outline pixel is inside: the edge lies half a pixel beyond it.
+            steps.push((f64::from(d) + 0.5, r, o.ratio.shadow_samples));
+            by_step.push(p);
+        }
+    }
+    let pairs: usize = steps.iter().map(|s| s.2).sum();
+    if pairs < MIN_OUTLINE_FIT_PAIRS {
+        return Ok(None);
+    }
+    let mut best: Option<(f64, f32, f64)> = None;
+    for &sigma in candidates_px {
+        let sigma64 = f64::from(sigma.max(1e-3));
+        for k in 5..=99 {
+            let s = f64::from(k) * 0.01;
+            let err: f64 = steps
+                .iter()
+                .map(|&(d, r, n)| {
+                    let p = normal_cdf(d / sigma64);
+                    let pred = (1.0 - (1.0 - s) * p) / (1.0 - (1.0 - s) * (1.0 - p));
+                    n as f64 * (r.ln() - pred.ln()).powi(2)
+                })
+                .sum();
+            if best.is_none_or(|b| err < b.0) {
+                best = Some((err, sigma, s));
+            }
+        }
+    }
+    let Some((_, softness_px, s)) = best else {
+        return Ok(None);
+    };
+    // The darkening from all pairs past the penumbra (three deviations) pooled, where there
+    // are enough of them: there the shadow is its full darkness, and one median over every
+    // distance is not pulled by a texture that darkens the pairs of one distance. Else the
+    // fitted ratio, in every channel.
+    let mut past = OutlinePairs::default();
+    for (st, p) in steps.iter().zip(by_step) {
+        if st.0 >= 3.0 * f64::from(softness_px) {
+            past.append(p);
+        }
+    }
+    let rgb = if past.len() >= MIN_OUTLINE_PAST_PAIRS {
+        past.summary().map_or([s as f32; 3], |o| o.ratio.rgb)
+    } else {
+        [s as f32; 3]
+    };
+    Ok(Some(OutlineFit {
+        softness_px,
+        ratio: ShadowRatio {
+            rgb,
+            shadow_samples: pairs,
+            lit_samples: pairs,
+        },
+    }))
 }
 
 /// `matte` over a larger rectangle `rect` (which contains its own), zero outside.

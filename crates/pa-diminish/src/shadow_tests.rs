@@ -170,3 +170,70 @@ fn lift_undoes_cast_and_excluded_pixels_are_not_measured() {
     soft.exclude(&umbra).expect("exclude");
     assert!(soft.weights().iter().all(|&w| w < UMBRA_WEIGHT));
 }
+
+/// Paper printed with black squares of 14 px every 24 px (a board of small tags), sRGB.
+fn print(w: u32, h: u32) -> ImageRgba8 {
+    ImageRgba8::from_fn(w, h, |x, y| {
+        if black_at(x as i64, y as i64) {
+            [12, 12, 12, 255]
+        } else {
+            [232, 230, 224, 255]
+        }
+    })
+    .expect("image")
+}
+
+fn black_at(x: i64, y: i64) -> bool {
+    (x + 5).rem_euclid(24) < 14 && (y + 3).rem_euclid(24) < 14
+}
+
+/// The outline fit recovers a known penumbra and darkening where the medians cannot: on a
+/// wood-like table the softness within one candidate and the ratio within 0.03; on print
+/// (black squares across the shadow's outline), with the print known, the same, where
+/// the medians of the region against its ring are thrown by the print. No edge: no
+/// darkening (a ratio above 0.8).
+#[test]
+fn outline_fit_recovers_softness_and_darkening_on_texture_and_print() {
+    let (w, h) = (160, 120);
+    let hard = ShadowMatte::from_triangles(&quad(), 24, w, h).expect("matte");
+    let candidates = [0.75, 1.5, 3.0, 6.0, 10.0];
+    let ratio = [0.45, 0.5, 0.6];
+    let y = |r: [f32; 3]| 0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2];
+    // A square's edge and its 3x3 neighbourhood are one print.
+    let same_print = |a: [u32; 2], b: [u32; 2]| {
+        let class = |[x, y]: [u32; 2]| {
+            let c = black_at(i64::from(x), i64::from(y));
+            let one = (-1..=1)
+                .all(|dy| (-1..=1).all(|dx| black_at(i64::from(x) + dx, i64::from(y) + dy) == c));
+            one.then_some(c)
+        };
+        matches!((class(a), class(b)), (Some(p), Some(q)) if p == q)
+    };
+    for (name, lit, same) in [
+        ("wood", table(w, h), None),
+        ("print", print(w, h), Some(&same_print as SameSurface<'_>)),
+    ] {
+        let mut shadowed = lit.clone();
+        cast_shadow(&mut shadowed, &hard.soften(3.0).expect("soften"), ratio).expect("cast");
+        let fit = fit_outline(&shadowed, &hard, &candidates, None, same)
+            .expect("fit")
+            .expect("the outline in view");
+        let medians = fit_softness(&shadowed, &hard, &candidates, None).expect("medians");
+        println!("{name}: outline fit {fit:?}; medians {medians:?}");
+        // Periodic grain biases pairs a fixed distance apart: good to a factor of two.
+        assert!((1.5..=6.0).contains(&fit.softness_px), "{name}: {fit:?}");
+        assert!(
+            (y(fit.ratio.rgb) - y(ratio)).abs() < 0.03,
+            "{name}: {fit:?}"
+        );
+        for (got, want) in fit.ratio.rgb.iter().zip(ratio) {
+            assert!((got - want).abs() < 0.06, "{name}: {fit:?}");
+        }
+        let flat = fit_outline(&lit, &hard, &candidates, None, same)
+            .expect("fit")
+            .expect("the outline in view");
+        // The grain's stripes give pairs a few pixels apart a ratio of their own (0.87 here):
+        // still far from a shadow's.
+        assert!(y(flat.ratio.rgb) > 0.8, "{name}, no shadow: {flat:?}");
+    }
+}

@@ -9,18 +9,23 @@
 //! direction predicts a shadow region on the table; the candidate whose region is the most
 //! darkened (median colour inside over the lit ring around it, [`pa_diminish::shadow`]) in
 //! the sense that its darkening explains the most of the observed luminance, wins,
-//! on a coarse grid of directions then a finer one around the best, and only when the
-//! darkening is measurable ([`MAX_SHADOW_LUMINANCE`]) and its outline agrees (pairs across
-//! it darken alike); when the outline vetoes the best direction (dark print or wood beside
-//! the prop), the next distinct peak of the coarse scores is refined and tried. The softness
-//! is then the Gaussian width that best explains the observed penumbra. Pixel image math
-//! stays in `pa-diminish`; this module knows meshes and cameras.
+//! on a coarse grid of directions then a finer one around the best. The winner is then
+//! polished to where its outline is sharpest (pairs of pixels across it, each pair on one
+//! surface: [`edge_contrast`]), and the softness and darkening are fitted on those pairs at
+//! several distances from the outline ([`pa_diminish::shadow::fit_outline`]); the light is
+//! kept only when the darkening is measurable ([`MAX_SHADOW_LUMINANCE`]). When that fit
+//! finds no darkening (dark print or wood beside the prop posing as a shadow), the next
+//! distinct peak of the coarse scores is tried. Where the board's print is known
+//! ([`ShadowView::same_surface`]), pairs across a tag's black and white are left out: the
+//! medians inside and around a region take print for shadow, the pairs do not. Where too
+//! little of the outline is in view, the softness and darkening come from those medians.
+//! Pixel image math stays in `pa-diminish`; this module knows meshes and cameras.
 
 use glam::{Mat4, Vec3};
 use pa_camera::CameraModel;
 use pa_diminish::shadow::{
-    explained_darkening, fit_softness, lit_luminance, measure_shadow, outline_darkening,
-    ShadowMatte, ShadowRatio,
+    explained_darkening, fit_outline, fit_softness, lit_luminance, measure_shadow,
+    outline_darkenings, SameSurface, ShadowMatte, ShadowRatio,
 };
 use pa_diminish::{DiminishError, ImageRgba8, Mask};
 use pa_model::{anim::Pose, Model};
@@ -37,6 +42,40 @@ pub struct ShadowLight {
     pub ratio_rgb: [f32; 3],
 }
 
+/// A frame as the shadow estimate reads it.
+#[derive(Clone, Copy)]
+pub struct ShadowView<'a> {
+    pub frame: &'a ImageRgba8,
+    pub camera: &'a CameraModel,
+    pub camera_from_marker: Mat4,
+    /// The pixels that are not table (the key prop, dilated).
+    pub exclude: &'a Mask,
+    /// Which pixel pairs show the same surface, when the set's print is known (the board):
+    /// the outline compares only those.
+    pub same_surface: Option<SameSurface<'a>>,
+}
+
+impl ShadowView<'_> {
+    /// [`hard_matte`] of `triangles` along `dir` in this view.
+    fn hard_matte(
+        &self,
+        triangles: &[[Vec3; 3]],
+        dir: Vec3,
+        margin_px: u32,
+    ) -> Option<ShadowMatte> {
+        let (w, h) = self.frame.size();
+        hard_matte(
+            triangles,
+            dir,
+            self.camera,
+            self.camera_from_marker,
+            margin_px,
+            w,
+            h,
+        )
+    }
+}
+
 /// A shadow whose luminance ratio is above this is not measurably darker than its
 /// surroundings: no light is estimated from it.
 pub const MAX_SHADOW_LUMINANCE: f32 = 0.7;
@@ -44,11 +83,9 @@ pub const MAX_SHADOW_LUMINANCE: f32 = 0.7;
 /// Extra pixels around a predicted shadow where the lit ring is measured.
 pub const RING_PX: u32 = 12;
 
-/// How far inside and outside an outline [`measure_outline`] compares beyond the penumbra.
-const OUTLINE_EXTRA_PX: f32 = 1.0;
-
-/// Fewest outline pairs in view for [`measure_outline`].
-pub const MIN_OUTLINE_PAIRS: usize = 16;
+/// The margin of a hard matte whose outline is read at several distances: past the farthest
+/// pair of [`pa_diminish::shadow::OUTLINE_FIT_STEPS_PX`].
+const OUTLINE_MARGIN_PX: u32 = 20;
 
 /// Softness candidates (Gaussian deviation, pixels) for [`estimate_light`].
 pub const SOFTNESS_CANDIDATES_PX: [f32; 7] = [0.75, 1.5, 2.5, 4.0, 6.0, 9.0, 13.0];
@@ -162,23 +199,12 @@ pub fn soft_matte(
 /// explains less of it, one that spills onto lit table is penalised there), with the ratio;
 /// `None` when too little of it is visible to measure.
 fn score(
-    frame: &ImageRgba8,
+    view: &ShadowView<'_>,
     key_triangles: &[[Vec3; 3]],
     dir: Vec3,
-    camera: &CameraModel,
-    camera_from_marker: Mat4,
-    exclude: &Mask,
 ) -> Result<Option<(f32, ShadowRatio)>, DiminishError> {
-    let (w, h) = frame.size();
-    let Some(m) = hard_matte(
-        key_triangles,
-        dir,
-        camera,
-        camera_from_marker,
-        RING_PX,
-        w,
-        h,
-    ) else {
+    let (frame, exclude) = (view.frame, view.exclude);
+    let Some(m) = view.hard_matte(key_triangles, dir, RING_PX) else {
         return Ok(None);
     };
     // A shadow mostly hidden by the prop says nothing: at least a quarter of it in view.
@@ -195,72 +221,128 @@ fn score(
     Ok(Some((e as f32, r)))
 }
 
-/// The darkening of the shadow of `triangles` under `light` in `frame`, measured across its
-/// outline just past the penumbra (three deviations of the softness and a pixel); `None`
-/// when the outline is not in view. Pairs straddle one surface, so a shadow across a sheet's
-/// edge measures as well as one on a single surface.
+/// The darkening of the shadow of `triangles` under `light` in the view, measured across its
+/// outline: the pairs (of one print, where the print is known) at every distance of
+/// [`pa_diminish::shadow::OUTLINE_FIT_STEPS_PX`], fitted with the light's softness, the
+/// darkening from those past the penumbra ([`fit_outline`]); `None` when too little of the
+/// outline is in view ([`pa_diminish::shadow::MIN_OUTLINE_FIT_PAIRS`]). Pairs straddle one
+/// surface, so a shadow across a sheet's edge measures as well as one on a single surface.
 pub fn measure_outline(
-    frame: &ImageRgba8,
+    view: &ShadowView<'_>,
     triangles: &[[Vec3; 3]],
     light: &ShadowLight,
-    camera: &CameraModel,
-    camera_from_marker: Mat4,
-    exclude: &Mask,
 ) -> Result<Option<ShadowRatio>, DiminishError> {
-    let (w, h) = frame.size();
-    let step = 3.0 * light.softness_px + OUTLINE_EXTRA_PX;
-    let margin = RING_PX + step.ceil() as u32;
-    let Some(m) = hard_matte(
-        triangles,
-        light.toward_light,
-        camera,
-        camera_from_marker,
-        margin,
-        w,
-        h,
-    ) else {
+    let Some(m) = view.hard_matte(triangles, light.toward_light, OUTLINE_MARGIN_PX) else {
         return Ok(None);
     };
-    Ok(outline_darkening(frame, &m, step, Some(exclude))?
-        .filter(|o| o.ratio.shadow_samples >= MIN_OUTLINE_PAIRS)
-        .map(|o| o.ratio))
+    Ok(fit_outline(
+        view.frame,
+        &m,
+        &[light.softness_px],
+        Some(view.exclude),
+        view.same_surface,
+    )?
+    .map(|f| f.ratio))
 }
 
 /// Estimates the key light from the darkening on the table around the key prop: see the
-/// module docs. `key_triangles` is the key pose in the marker frame, `exclude` the pixels
-/// that are not table (the key prop, dilated). `Ok(None)` when no direction predicts a
-/// measurably darker region.
+/// module docs. `key_triangles` is the key pose in the marker frame. `Ok(None)` when no
+/// direction predicts a measurably darker region.
 pub fn estimate_light(
-    frame: &ImageRgba8,
+    view: &ShadowView<'_>,
     key_triangles: &[[Vec3; 3]],
-    camera: &CameraModel,
-    camera_from_marker: Mat4,
-    exclude: &Mask,
 ) -> Result<Option<ShadowLight>, DiminishError> {
     let score_of = |az: f32, el: f32| -> Result<Option<f32>, DiminishError> {
-        let dir = toward_light(az, el);
-        Ok(score(
-            frame,
-            key_triangles,
-            dir,
-            camera,
-            camera_from_marker,
-            exclude,
-        )?
-        .filter(|s| s.1.luminance() <= MAX_SHADOW_LUMINANCE)
-        .map(|s| s.0))
+        Ok(score(view, key_triangles, toward_light(az, el))?
+            .filter(|s| s.1.luminance() <= MAX_SHADOW_LUMINANCE)
+            .map(|s| s.0))
     };
     search_light(score_of, |az, el| {
-        light_along(
-            frame,
-            key_triangles,
-            camera,
-            camera_from_marker,
-            exclude,
-            az,
-            el,
-        )
+        // The direction where its outline is sharpest first; the refined one when the
+        // polished gives no light.
+        let (paz, pel) = polish(view, key_triangles, az, el)?;
+        match light_along(view, key_triangles, paz, pel)? {
+            Some(l) => Ok(Some(l)),
+            None if (paz, pel) != (az, el) => light_along(view, key_triangles, az, el),
+            None => Ok(None),
+        }
     })
+}
+
+/// Distances past the outline at which [`edge_contrast`] compares pairs.
+const EDGE_STEPS_PX: [f32; 3] = [1.0, 2.0, 3.0];
+
+/// Fewest pairs at a distance of [`EDGE_STEPS_PX`] for [`edge_contrast`] to count it.
+const MIN_EDGE_PAIRS: usize = 8;
+
+/// How sharply the frame darkens across the outline of the shadow along `dir`: the mean over
+/// [`EDGE_STEPS_PX`] of the pairs' mean log-ratio (outside over inside, pairs of one
+/// surface; a mean, so that every misplaced stretch of the outline counts). Highest where the
+/// predicted outline lies on the real edge: a displaced outline compares pairs on one side of
+/// the edge (both lit or both shadowed). `None` when fewer than two distances have
+/// [`MIN_EDGE_PAIRS`] pairs.
+fn edge_contrast(
+    view: &ShadowView<'_>,
+    triangles: &[[Vec3; 3]],
+    dir: Vec3,
+) -> Result<Option<f32>, DiminishError> {
+    let Some(m) = view.hard_matte(triangles, dir, OUTLINE_MARGIN_PX) else {
+        return Ok(None);
+    };
+    let logs: Vec<f32> = outline_darkenings(
+        view.frame,
+        &m,
+        &EDGE_STEPS_PX,
+        Some(view.exclude),
+        view.same_surface,
+    )?
+    .into_iter()
+    .flatten()
+    .filter(|o| o.ratio.shadow_samples >= MIN_EDGE_PAIRS)
+    .map(|o| o.mean_log as f32)
+    .collect();
+    Ok((logs.len() >= 2).then(|| logs.iter().sum::<f32>() / logs.len() as f32))
+}
+
+/// The direction `(az, el)` (degrees) moved to where its shadow's outline is sharpest
+/// ([`edge_contrast`]): a 5x5 grid of 2.5 degrees of azimuth and elevation around it, then one
+/// of 0.8 degrees around the best; `(az, el)` itself when its outline is not in view. The
+/// search's score weighs the darkening inside the region against its ring, which print and
+/// grain there pull; pairs across the outline compare one surface with itself.
+fn polish(
+    view: &ShadowView<'_>,
+    triangles: &[[Vec3; 3]],
+    az: f32,
+    el: f32,
+) -> Result<(f32, f32), DiminishError> {
+    let Some(c0) = edge_contrast(view, triangles, toward_light(az, el))? else {
+        return Ok((az, el));
+    };
+    let mut best = (c0, az, el);
+    for step in [2.5f32, 2.5 / 3.0] {
+        let (_, a0, e0) = best;
+        let dirs: Vec<(f32, f32)> = (-2..=2)
+            .flat_map(|i| (-2..=2).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                (
+                    a0 + i as f32 * step,
+                    (e0 + j as f32 * step).clamp(5.0, 89.0),
+                )
+            })
+            .collect();
+        let scores: Vec<Result<Option<f32>, DiminishError>> = dirs
+            .par_iter()
+            .map(|&(az, el)| edge_contrast(view, triangles, toward_light(az, el)))
+            .collect();
+        for ((az, el), c) in dirs.into_iter().zip(scores) {
+            if let Some(c) = c? {
+                if c > best.0 {
+                    best = (c, az, el);
+                }
+            }
+        }
+    }
+    Ok((best.1, best.2))
 }
 
 /// [`estimate_light`]'s search, given how a direction `(azimuth, elevation)` scores and
@@ -337,52 +419,48 @@ fn coarse_neighbours((a0, e0): (f32, f32), (a1, e1): (f32, f32)) -> bool {
 /// `None` when the shadow it predicts is not measurably darker (across its outline where
 /// enough of it is in view, else over its softened region).
 fn light_along(
-    frame: &ImageRgba8,
+    view: &ShadowView<'_>,
     key_triangles: &[[Vec3; 3]],
-    camera: &CameraModel,
-    camera_from_marker: Mat4,
-    exclude: &Mask,
     az: f32,
     el: f32,
 ) -> Result<Option<ShadowLight>, DiminishError> {
+    let (frame, exclude) = (view.frame, view.exclude);
     let dir = toward_light(az, el);
-    let (w, h) = frame.size();
     let margin = RING_PX + (3.0 * SOFTNESS_CANDIDATES_PX[6]).ceil() as u32;
-    let Some(hard) = hard_matte(key_triangles, dir, camera, camera_from_marker, margin, w, h)
-    else {
+    let Some(hard) = view.hard_matte(key_triangles, dir, margin) else {
         return Ok(None);
     };
+    // The softness and darkening from the pairs across the outline where enough of it is in
+    // view: each pair compares one surface with itself a few pixels away, so print and wood
+    // beside the region do not pose as a shadow (an outline without an edge fits no
+    // darkening).
+    if let Some(fit) = fit_outline(
+        frame,
+        &hard,
+        &SOFTNESS_CANDIDATES_PX,
+        Some(exclude),
+        view.same_surface,
+    )? {
+        let light = ShadowLight {
+            toward_light: dir,
+            softness_px: fit.softness_px,
+            ratio_rgb: fit.ratio.rgb,
+        };
+        return Ok((fit.ratio.luminance() <= MAX_SHADOW_LUMINANCE).then_some(light));
+    }
+    // Else (too little of the outline in view) the medians of the softened region against
+    // its ring.
     let Some((softness_px, ratio)) =
         fit_softness(frame, &hard, &SOFTNESS_CANDIDATES_PX, Some(exclude))?
     else {
         return Ok(None);
     };
-    let mut light = ShadowLight {
+    let light = ShadowLight {
         toward_light: dir,
         softness_px,
         ratio_rgb: ratio.rgb,
     };
-    // The ratio across the outline where enough of it is in view: each pair compares one
-    // surface, where the medians compare the umbra's surfaces with the ring's. An outline
-    // that shows no darkening vetoes the medians (dark print or wood beside the region
-    // posing as a shadow: a false light would cast a twin's shadow on a shadowless set).
-    if let Some(r) = measure_outline(
-        frame,
-        key_triangles,
-        &light,
-        camera,
-        camera_from_marker,
-        exclude,
-    )? {
-        if r.luminance() > MAX_SHADOW_LUMINANCE {
-            return Ok(None);
-        }
-        light.ratio_rgb = r.rgb;
-    }
-    // Not measurably darker after all (the softened region's ratio): no light.
-    let r = light.ratio_rgb;
-    let luminance = 0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2];
-    Ok((luminance <= MAX_SHADOW_LUMINANCE).then_some(light))
+    Ok((ratio.luminance() <= MAX_SHADOW_LUMINANCE).then_some(light))
 }
 
 #[cfg(test)]

@@ -82,6 +82,11 @@ fn wood(x: f64, y: f64) -> [f64; 3] {
 /// The frame with and without the shadow (linear-light shading, sRGB out), and the box's
 /// pixels as a mask.
 fn render() -> (ImageRgba8, ImageRgba8, Mask) {
+    render_on(wood)
+}
+
+/// [`render`] with the table's albedo at marker point `(x, y)` given by `table`.
+fn render_on(table: impl Fn(f64, f64) -> [f64; 3]) -> (ImageRgba8, ImageRgba8, Mask) {
     let (cam, pose) = camera();
     let marker_from_camera = pose.inverse().as_dmat4();
     let origin = marker_from_camera.transform_point3(DVec3::ZERO);
@@ -114,7 +119,7 @@ fn render() -> (ImageRgba8, ImageRgba8, Mask) {
                 ([0.3; 3], [0.3; 3])
             } else {
                 let p = origin + d * t_table;
-                let c = wood(p.x, p.y);
+                let c = table(p.x, p.y);
                 let blocked = dirs
                     .iter()
                     .filter(|&&dl| hit_box(p, dl, 1e-9).is_some())
@@ -137,6 +142,22 @@ fn render() -> (ImageRgba8, ImageRgba8, Mask) {
         ImageRgba8::new(W, H, shadowed).expect("image"),
         Mask::new(W, H, boxm).expect("mask"),
     )
+}
+
+/// The frame as the estimate reads it, without a known print.
+fn view<'a>(
+    frame: &'a ImageRgba8,
+    camera: &'a CameraModel,
+    camera_from_marker: Mat4,
+    exclude: &'a Mask,
+) -> ShadowView<'a> {
+    ShadowView {
+        frame,
+        camera,
+        camera_from_marker,
+        exclude,
+        same_surface: None,
+    }
 }
 
 /// The mask grown by 2 px (the prop's edge is not table).
@@ -199,7 +220,7 @@ fn estimated_light_lifts_the_box_shadow() {
     let (cam, pose) = camera();
     let (lit, shadowed, boxm) = render();
     let exclude = grown(&boxm);
-    let est = estimate_light(&shadowed, &box_triangles(), &cam, pose, &exclude)
+    let est = estimate_light(&view(&shadowed, &cam, pose, &exclude), &box_triangles())
         .expect("estimate")
         .expect("a light");
     let angle = est.toward_light.angle_between(light()).to_degrees();
@@ -233,7 +254,7 @@ fn no_shadow_no_light() {
     let (lit, _, boxm) = render();
     let exclude = grown(&boxm);
     assert_eq!(
-        estimate_light(&lit, &box_triangles(), &cam, pose, &exclude).expect("estimate"),
+        estimate_light(&view(&lit, &cam, pose, &exclude), &box_triangles()).expect("estimate"),
         None
     );
 }
@@ -310,4 +331,87 @@ fn regression_a_vetoed_best_direction_falls_back_to_the_next_peak() {
     .expect("search");
     assert_eq!(none, None);
     assert_eq!(calls.get(), MAX_LIGHT_CANDIDATES);
+}
+
+/// A printed sheet: black squares of 16 mm every 28 mm on white paper (a board of small
+/// tags at its crudest).
+fn print(x: f64, y: f64) -> [f64; 3] {
+    let inside = |v: f64| (v / 0.028 + 0.1).rem_euclid(1.0) < 16.0 / 28.0;
+    if inside(x) && inside(y) {
+        [0.04; 3]
+    } else {
+        [0.85, 0.84, 0.8]
+    }
+}
+
+/// Whether pixels `a` and `b` show the same square of [`print`] (each away from a square's
+/// edge: its 3x3 neighbours on the same square), as the board's known print says.
+fn same_square(cam: &CameraModel, pose: Mat4, a: [u32; 2], b: [u32; 2]) -> bool {
+    let marker_from_camera = pose.inverse().as_dmat4();
+    let origin = marker_from_camera.transform_point3(DVec3::ZERO);
+    let square = |[x, y]: [u32; 2]| -> Option<i64> {
+        let mut seen = None;
+        for (dx, dy) in (-1..=1).flat_map(|i| (-1..=1).map(move |j| (i, j))) {
+            let ray = cam.ray_from_pixel(glam::DVec2::new(
+                f64::from(x) + f64::from(dx),
+                f64::from(y) + f64::from(dy),
+            ));
+            let d = marker_from_camera.transform_vector3(ray);
+            let p = origin + d * (-origin.z / d.z);
+            let black = print(p.x, p.y)[0] < 0.5;
+            if seen.is_some_and(|s| s != black) {
+                return None;
+            }
+            seen = Some(black);
+        }
+        seen.map(i64::from)
+    };
+    matches!((square(a), square(b)), (Some(p), Some(q)) if p == q)
+}
+
+/// Regression (the generated `shadows` set): the key prop's shadow fell across a tag's
+/// print, and the light was never found. The softness was fitted on the medians of the
+/// shadow region against its ring, which black print in both made equal (ratio 1, the
+/// smallest softness), and the outline was then read too close to the edge: every candidate
+/// was vetoed. Now the softness and the darkening are fitted on the outline's pairs at
+/// several distances, and with the print known, pairs across black and white are left out.
+/// On a checker print the light is found within 6 degrees with its darkening, and the
+/// shadow's darkening is measured on the frame within 0.08.
+#[test]
+fn regression_a_shadow_across_print_is_found_with_the_print_known() {
+    let (cam, pose) = camera();
+    let (_, shadowed, boxm) = render_on(print);
+    let exclude = grown(&boxm);
+    let same = |a: [u32; 2], b: [u32; 2]| same_square(&cam, pose, a, b);
+    let known = ShadowView {
+        same_surface: Some(&same),
+        ..view(&shadowed, &cam, pose, &exclude)
+    };
+    let est = estimate_light(&known, &box_triangles())
+        .expect("estimate")
+        .expect("a light");
+    let angle = est.toward_light.angle_between(light()).to_degrees();
+    println!("print known: {est:?}, {angle:.1} degrees off");
+    assert!(angle < 6.0, "direction {angle} degrees off");
+    let y = |r: [f32; 3]| 0.2126 * r[0] + 0.7152 * r[1] + 0.0722 * r[2];
+    assert!(
+        (y(est.ratio_rgb) - y(RATIO)).abs() < 0.08,
+        "{:?}",
+        est.ratio_rgb
+    );
+    let truth = ShadowLight {
+        toward_light: light(),
+        ..est
+    };
+    let measured = measure_outline(&known, &box_triangles(), &truth)
+        .expect("measure")
+        .expect("the outline in view");
+    println!("measured on the frame: {:?}", measured.rgb);
+    assert!((measured.luminance() - y(RATIO)).abs() < 0.08);
+    let unknown =
+        estimate_light(&view(&shadowed, &cam, pose, &exclude), &box_triangles()).expect("estimate");
+    println!(
+        "print not known: {unknown:?}, {:?} degrees off",
+        unknown.map(|l| l.toward_light.angle_between(light()).to_degrees())
+    );
 }

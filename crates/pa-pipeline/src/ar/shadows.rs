@@ -12,12 +12,14 @@
 //! ([`crate::shadow::MAX_SHADOW_LUMINANCE`]) lifts nothing.
 
 use glam::Vec3;
-use pa_diminish::shadow::{cast_shadow, lift_shadow, measure_shadow};
+use pa_diminish::shadow::{cast_shadow, lift_shadow, measure_shadow, SameSurface};
 use pa_diminish::{dilate_in_bbox, DilateShape, ImageRgba8, Rect};
 
 use super::texture::Textured;
 use super::{mask_from_bools, ArError, ArPipeline, FrameTimes, FrameView};
-use crate::shadow::{estimate_light, measure_outline, posed_triangles, soft_matte, ShadowLight};
+use crate::shadow::{
+    estimate_light, measure_outline, posed_triangles, soft_matte, ShadowLight, ShadowView,
+};
 
 /// Frames between two tries at estimating the light while none is known.
 pub const RETRY_FRAMES: u32 = 12;
@@ -121,16 +123,22 @@ impl ArPipeline {
         let mut exclude = mask_from_bools(width, height, &textured.key_mask)?;
         let bbox = Rect::from_inclusive(x0 as u32, y0 as u32, x1 as u32, y1 as u32);
         dilate_in_bbox(&mut exclude, bbox, EXCLUDE_GROW_PX, DilateShape::Disc);
+        let print = self
+            .surfaces
+            .as_ref()
+            .map(|(s, _)| s.print_view(&camera_model, camera_from_marker));
+        let same = |a: [u32; 2], b: [u32; 2]| print.as_ref().is_some_and(|p| p.same_print(a, b));
+        let view = ShadowView {
+            frame: &frame,
+            camera: &camera_model,
+            camera_from_marker,
+            exclude: &exclude,
+            same_surface: print.is_some().then_some(&same as SameSurface<'_>),
+        };
         let state = &mut self.shadows;
         if state.light.is_none() && !state.fixed {
             if state.retry_in == 0 {
-                state.light = estimate_light(
-                    &frame,
-                    &tris.key,
-                    &camera_model,
-                    camera_from_marker,
-                    &exclude,
-                )?;
+                state.light = estimate_light(&view, &tris.key)?;
                 state.retry_in = RETRY_FRAMES;
             } else {
                 state.retry_in -= 1;
@@ -150,17 +158,10 @@ impl ArPipeline {
         else {
             return Ok(None);
         };
-        // This frame's darkening where it can be measured; nothing lifted where the predicted
-        // region is not darker than the table around it.
-        let measured = measure_outline(
-            &frame,
-            &tris.key,
-            light,
-            &camera_model,
-            camera_from_marker,
-            &exclude,
-        )?;
-        let measured = match measured {
+        // This frame's darkening where it can be measured: across the outline, else by
+        // medians. Nothing lifted where the predicted region is not darker than the table
+        // around it.
+        let measured = match measure_outline(&view, &tris.key, light)? {
             Some(r) => Some(r),
             None => measure_shadow(&frame, &matte, Some(&exclude))?,
         };

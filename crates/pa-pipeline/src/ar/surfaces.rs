@@ -177,20 +177,8 @@ impl BoardSurfaces {
         {
             return 0;
         }
-        let marker_from_camera = camera_from_marker.as_dmat4().inverse();
-        let origin = marker_from_camera.transform_point3(DVec3::ZERO);
-        // The marker point seen at pixel (x, y) (None: the ray misses the plane).
-        let on_plane = |x: f64, y: f64| -> Option<DVec2> {
-            let dir = marker_from_camera.transform_vector3(camera.ray_from_pixel(DVec2::new(x, y)));
-            if dir.z.abs() < 1e-12 {
-                return None;
-            }
-            let t = -origin.z / dir.z;
-            (t > 0.0).then(|| {
-                let p = origin + t * dir;
-                DVec2::new(p.x, p.y)
-            })
-        };
+        let plane = PlaneRays::new(camera, camera_from_marker);
+        let on_plane = |x: f64, y: f64| plane.point(x, y);
         // The fraction of white at pixel (x, y): 2x2 samples.
         let whiteness = |x: usize, y: usize| -> Option<f32> {
             let mut n = 0u32;
@@ -273,6 +261,51 @@ impl BoardSurfaces {
             .sum()
     }
 
+    /// What the board prints at marker point `p`.
+    fn print_at(&self, p: DVec2) -> Print {
+        if self.prints.iter().any(|t| !t.white_at(p)) {
+            return Print::Black;
+        }
+        let on = |q: &[DVec3; 4]| in_convex_quad(q, p);
+        if self.sheet.as_ref().is_some_and(on) || self.tags.iter().any(on) {
+            Print::White
+        } else {
+            Print::Table
+        }
+    }
+
+    /// The print a pixel shows when the 3x3 pixels around it (their centres on the marker
+    /// plane, through `plane`'s local affine map at the pixel) all show the same one; `None`
+    /// near an edge of the print (a blurred mix).
+    fn print_around(&self, plane: &PlaneRays<'_>, [x, y]: [u32; 2]) -> Option<Print> {
+        let (x, y) = (f64::from(x), f64::from(y));
+        let p0 = plane.point(x, y)?;
+        let (px, py) = (plane.point(x + 1.0, y)? - p0, plane.point(x, y + 1.0)? - p0);
+        let mut seen = None;
+        for dy in [-1.0, 0.0, 1.0] {
+            for dx in [-1.0, 0.0, 1.0] {
+                let c = self.print_at(p0 + dx * px + dy * py);
+                if seen.is_some_and(|s| s != c) {
+                    return None;
+                }
+                seen = Some(c);
+            }
+        }
+        seen
+    }
+
+    /// The board as seen from `camera_from_marker`, for [`PrintView::same_print`].
+    pub fn print_view<'a>(
+        &'a self,
+        camera: &'a CameraModel,
+        camera_from_marker: Mat4,
+    ) -> PrintView<'a> {
+        PrintView {
+            surfaces: self,
+            plane: PlaneRays::new(camera, camera_from_marker),
+        }
+    }
+
     /// Writes the label of every pixel of `rect` into `out` (pixels outside `rect` are not
     /// written). A quad with a corner behind the camera is left out.
     pub fn label(
@@ -302,6 +335,83 @@ impl BoardSurfaces {
             paint_quad(data, w, rect, &q, TAG_GROW_PX, TAG);
         }
     }
+}
+
+/// What the board prints at a point of the marker plane.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Print {
+    /// Off the sheet and the tags (wood, cloth: unknown albedo).
+    Table,
+    /// The sheet's paper, a tag's white ring or white cell.
+    White,
+    /// A tag's black cell.
+    Black,
+}
+
+/// The board's print in one view ([`BoardSurfaces::print_view`]).
+pub struct PrintView<'a> {
+    surfaces: &'a BoardSurfaces,
+    plane: PlaneRays<'a>,
+}
+
+impl PrintView<'_> {
+    /// Whether pixels `a` and `b` show the same printed surface (the table, white paper, or a
+    /// tag's black), away from any edge of the print: the pairs the shadow outline may
+    /// compare ([`pa_diminish::shadow::SameSurface`]).
+    pub fn same_print(&self, a: [u32; 2], b: [u32; 2]) -> bool {
+        let s = self.surfaces;
+        match (
+            s.print_around(&self.plane, a),
+            s.print_around(&self.plane, b),
+        ) {
+            (Some(pa), Some(pb)) => pa == pb,
+            _ => false,
+        }
+    }
+}
+
+/// Pixels back-projected onto the marker plane (z = 0) of a view.
+struct PlaneRays<'a> {
+    camera: &'a CameraModel,
+    marker_from_camera: glam::DMat4,
+    /// The camera's centre, marker frame.
+    origin: DVec3,
+}
+
+impl<'a> PlaneRays<'a> {
+    fn new(camera: &'a CameraModel, camera_from_marker: Mat4) -> Self {
+        let marker_from_camera = camera_from_marker.as_dmat4().inverse();
+        Self {
+            camera,
+            marker_from_camera,
+            origin: marker_from_camera.transform_point3(DVec3::ZERO),
+        }
+    }
+
+    /// The marker point seen at pixel `(x, y)` (`None`: the ray misses the plane).
+    fn point(&self, x: f64, y: f64) -> Option<DVec2> {
+        let dir = self
+            .marker_from_camera
+            .transform_vector3(self.camera.ray_from_pixel(DVec2::new(x, y)));
+        if dir.z.abs() < 1e-12 {
+            return None;
+        }
+        let t = -self.origin.z / dir.z;
+        (t > 0.0).then(|| {
+            let p = self.origin + t * dir;
+            DVec2::new(p.x, p.y)
+        })
+    }
+}
+
+/// Whether marker point `p` lies inside the convex quad `q` (marker plane, either winding).
+fn in_convex_quad(q: &[DVec3; 4], p: DVec2) -> bool {
+    let side = |i: usize| {
+        let (a, b) = (q[i].truncate(), q[(i + 1) % 4].truncate());
+        (b - a).perp_dot(p - a)
+    };
+    let s: [f64; 4] = [side(0), side(1), side(2), side(3)];
+    s.iter().all(|&v| v >= 0.0) || s.iter().all(|&v| v <= 0.0)
 }
 
 /// The edges of quad `q` as (a point, the unit normal pointing inside), degenerate edges left

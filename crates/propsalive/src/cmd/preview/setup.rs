@@ -257,6 +257,7 @@ pub fn setup_shot(
         plate_pose,
         (width, height),
     )?;
+    run::diminish::apply_board(&mut pipeline, &board_for_plate);
     let keys = shot
         .key_poses
         .iter()

@@ -145,6 +145,16 @@ pub fn load_plate(
     Ok((plate, pose.to_mat4()))
 }
 
+/// Tells the pipeline what the board prints (its tags; the sheet's size is not in the shot),
+/// as `eval` does on every set it measures: the patch fill copies paper into paper and
+/// redraws a covered tag from its pattern, and the shadow estimate compares pairs of one
+/// print. Nothing for a target without tags.
+pub fn apply_board(pipeline: &mut ArPipeline, board: &pa_track::Board) {
+    if !board.tags.is_empty() {
+        pipeline.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(board, None)));
+    }
+}
+
 /// Applies `d` and the plate to a pipeline.
 pub fn apply(
     pipeline: &mut ArPipeline,

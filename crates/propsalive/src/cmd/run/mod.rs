@@ -434,6 +434,7 @@ impl FrameProcessor for PipelineProcessor<'_> {
             };
             let plate_pose = plate.as_ref().map(|p| p.1);
             diminish::apply(&mut pipeline, &cfg.diminish, plate)?;
+            diminish::apply_board(&mut pipeline, &cfg.board);
             pipeline.settings.look = cfg.look;
             hide::apply(
                 &mut pipeline,
