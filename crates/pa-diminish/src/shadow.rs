@@ -490,7 +490,7 @@ pub fn outline_darkening(
     same_surface: Option<SameSurface<'_>>,
 ) -> Result<Option<OutlineDarkening>, DiminishError> {
     let mut pairs = outline_pairs(image, hard, &[step_px], exclude, same_surface)?;
-    Ok(pairs.pop().and_then(OutlinePairs::summary))
+    Ok(pairs.pop().and_then(|mut p| p.summary()))
 }
 
 /// [`outline_darkening`] at each distance of `steps_px`, in one scan of the outline.
@@ -503,7 +503,7 @@ pub fn outline_darkenings(
 ) -> Result<Vec<Option<OutlineDarkening>>, DiminishError> {
     Ok(outline_pairs(image, hard, steps_px, exclude, same_surface)?
         .into_iter()
-        .map(OutlinePairs::summary)
+        .map(|mut p| p.summary())
         .collect())
 }
 
@@ -527,8 +527,9 @@ impl OutlinePairs {
         }
     }
 
-    /// [`outline_darkening`]'s summary; `None` without pairs.
-    fn summary(mut self) -> Option<OutlineDarkening> {
+    /// [`outline_darkening`]'s summary (the pairs reordered, not changed); `None` without
+    /// pairs.
+    fn summary(&mut self) -> Option<OutlineDarkening> {
         let n = self.logs.len();
         if n == 0 {
             return None;
@@ -736,16 +737,15 @@ pub fn fit_outline(
     exclude: Option<&Mask>,
     same_surface: Option<SameSurface<'_>>,
 ) -> Result<Option<OutlineFit>, DiminishError> {
-    // (distance from the edge, median luminance ratio, pairs), and each distance's pairs.
-    let mut steps: Vec<(f64, f64, usize)> = Vec::new();
-    let mut by_step: Vec<OutlinePairs> = Vec::new();
+    // Per distance with pairs: the distance from the edge, the median luminance ratio, the
+    // pair count, and the pairs.
+    let mut steps: Vec<(f64, f64, usize, OutlinePairs)> = Vec::new();
     let all = outline_pairs(image, hard, &OUTLINE_FIT_STEPS_PX, exclude, same_surface)?;
-    for (&d, p) in OUTLINE_FIT_STEPS_PX.iter().zip(all) {
-        if let Some(o) = p.clone().summary() {
+    for (&d, mut p) in OUTLINE_FIT_STEPS_PX.iter().zip(all) {
+        if let Some(o) = p.summary() {
             let r = f64::from(o.ratio.luminance()).clamp(f64::from(MIN_RATIO), 1.0);
             // The outline pixel is inside: the edge lies half a pixel beyond it.
-            steps.push((f64::from(d) + 0.5, r, o.ratio.shadow_samples));
-            by_step.push(p);
+            steps.push((f64::from(d) + 0.5, r, o.ratio.shadow_samples, p));
         }
     }
     let pairs: usize = steps.iter().map(|s| s.2).sum();
@@ -759,7 +759,7 @@ pub fn fit_outline(
             let s = f64::from(k) * 0.01;
             let err: f64 = steps
                 .iter()
-                .map(|&(d, r, n)| {
+                .map(|&(d, r, n, _)| {
                     let p = normal_cdf(d / sigma64);
                     let pred = (1.0 - (1.0 - s) * p) / (1.0 - (1.0 - s) * (1.0 - p));
                     n as f64 * (r.ln() - pred.ln()).powi(2)
@@ -778,8 +778,8 @@ pub fn fit_outline(
     // distance is not pulled by a texture that darkens the pairs of one distance. Else the
     // fitted ratio, in every channel.
     let mut past = OutlinePairs::default();
-    for (st, p) in steps.iter().zip(by_step) {
-        if st.0 >= 3.0 * f64::from(softness_px) {
+    for (d, _, _, p) in steps {
+        if d >= 3.0 * f64::from(softness_px) {
             past.append(p);
         }
     }

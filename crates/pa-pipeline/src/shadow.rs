@@ -320,31 +320,55 @@ fn polish(
     let Some(c0) = edge_contrast(view, triangles, toward_light(az, el))? else {
         return Ok((az, el));
     };
-    let mut best = (c0, az, el);
-    for step in [2.5f32, 2.5 / 3.0] {
+    let edge_of = |az: f32, el: f32| edge_contrast(view, triangles, toward_light(az, el));
+    let (_, az, el) = climb(
+        (c0, az, el),
+        &[(2.5, 2.5), (2.5 / 3.0, 2.5 / 3.0)],
+        &edge_of,
+    )?;
+    Ok((az, el))
+}
+
+/// Scores each direction `(azimuth, elevation)` of `dirs` by `by` on the pool's threads; the
+/// scored ones as `(score, azimuth, elevation)`, in the order of `dirs`.
+fn score_all<E: Send>(
+    dirs: &[(f32, f32)],
+    by: &(dyn Fn(f32, f32) -> Result<Option<f32>, E> + Sync),
+) -> Result<Vec<(f32, f32, f32)>, E> {
+    let scores: Vec<Result<Option<f32>, E>> = dirs.par_iter().map(|&(az, el)| by(az, el)).collect();
+    let mut out = Vec::with_capacity(dirs.len());
+    for (&(az, el), s) in dirs.iter().zip(scores) {
+        if let Some(s) = s? {
+            out.push((s, az, el));
+        }
+    }
+    Ok(out)
+}
+
+/// Climbs `score_of` from `best` (score, azimuth, elevation in degrees): for each spacing
+/// `(azimuth, elevation)` of `steps`, the 5x5 grid of that spacing around the best so far
+/// (elevations kept within 5..89 degrees) is scored ([`score_all`]), and a direction takes
+/// the best's place only by scoring higher. The grid's centre, the best itself, is not
+/// scored again.
+fn climb<E: Send>(
+    mut best: (f32, f32, f32),
+    steps: &[(f32, f32)],
+    score_of: &(dyn Fn(f32, f32) -> Result<Option<f32>, E> + Sync),
+) -> Result<(f32, f32, f32), E> {
+    for &(da, de) in steps {
         let (_, a0, e0) = best;
-        let dirs: Vec<(f32, f32)> = (-2..=2)
+        let grid: Vec<(f32, f32)> = (-2..=2)
             .flat_map(|i| (-2..=2).map(move |j| (i, j)))
-            .map(|(i, j)| {
-                (
-                    a0 + i as f32 * step,
-                    (e0 + j as f32 * step).clamp(5.0, 89.0),
-                )
-            })
+            .map(|(i, j)| (a0 + i as f32 * da, (e0 + j as f32 * de).clamp(5.0, 89.0)))
+            .filter(|&d| d != (a0, e0))
             .collect();
-        let scores: Vec<Result<Option<f32>, DiminishError>> = dirs
-            .par_iter()
-            .map(|&(az, el)| edge_contrast(view, triangles, toward_light(az, el)))
-            .collect();
-        for ((az, el), c) in dirs.into_iter().zip(scores) {
-            if let Some(c) = c? {
-                if c > best.0 {
-                    best = (c, az, el);
-                }
+        for (s, az, el) in score_all(&grid, score_of)? {
+            if s > best.0 {
+                best = (s, az, el);
             }
         }
     }
-    Ok((best.1, best.2))
+    Ok(best)
 }
 
 /// [`estimate_light`]'s search, given how a direction `(azimuth, elevation)` scores (the
@@ -363,26 +387,12 @@ fn search_light<E: Send>(
     edge_of: impl Fn(f32, f32) -> Result<Option<f32>, E> + Sync,
     light_at: impl Fn(f32, f32) -> Result<Option<ShadowLight>, E>,
 ) -> Result<Option<ShadowLight>, E> {
-    // The directions of a grid are scored on the pool's threads, in the grid's order.
-    let scored = |dirs: &[(f32, f32)],
-                  by: &(dyn Fn(f32, f32) -> Result<Option<f32>, E> + Sync)|
-     -> Result<Vec<(f32, f32, f32)>, E> {
-        let scores: Vec<Result<Option<f32>, E>> =
-            dirs.par_iter().map(|&(az, el)| by(az, el)).collect();
-        let mut out = Vec::with_capacity(dirs.len());
-        for (&(az, el), s) in dirs.iter().zip(scores) {
-            if let Some(s) = s? {
-                out.push((s, az, el));
-            }
-        }
-        Ok(out)
-    };
     let grid: Vec<(f32, f32)> = (0..7)
         .flat_map(|ei| (0..24).map(move |ai| (ai as f32 * 15.0, 20.0 + ei as f32 * 10.0)))
         .collect();
-    let mut by_region = scored(&grid, &score_of)?;
+    let mut by_region = score_all(&grid, &score_of)?;
     let darker: Vec<(f32, f32)> = by_region.iter().map(|&(_, a, e)| (a, e)).collect();
-    let mut by_edge = scored(&darker, &edge_of)?;
+    let mut by_edge = score_all(&darker, &edge_of)?;
     // Stable sorts: equal scores keep the grid's order.
     by_region.sort_by(|a, b| b.0.total_cmp(&a.0));
     by_edge.sort_by(|a, b| b.0.total_cmp(&a.0));
@@ -422,21 +432,15 @@ fn search_light<E: Send>(
             continue;
         };
         tried.push((a0, e0, which));
-        let mut best = (s0, a0, e0);
-        if which == 0 {
-            for (da, de) in [(5.0f32, 10.0 / 3.0), (5.0 / 3.0, 10.0 / 9.0)] {
-                let (_, a0, e0) = best;
-                let fine: Vec<(f32, f32)> = (-2..=2)
-                    .flat_map(|i| (-2..=2).map(move |j| (i, j)))
-                    .map(|(i, j)| (a0 + i as f32 * da, (e0 + j as f32 * de).clamp(5.0, 89.0)))
-                    .collect();
-                for (s, az, el) in scored(&fine, &score_of)? {
-                    if s > best.0 {
-                        best = (s, az, el);
-                    }
-                }
-            }
-        }
+        let best = if which == 0 {
+            climb(
+                (s0, a0, e0),
+                &[(5.0, 10.0 / 3.0), (5.0 / 3.0, 10.0 / 9.0)],
+                &score_of,
+            )?
+        } else {
+            (s0, a0, e0)
+        };
         let light = light_at(best.1, best.2)?;
         if light.is_some() {
             return Ok(light);
