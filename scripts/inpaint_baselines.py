@@ -9,6 +9,10 @@ PSNR (dB, peak 255, over R, G, B of the revealed pixels, each frame's MSE averag
 frames of a folder the way `eval` averages its PSNR: the mean of the per-frame PSNRs) of every
 method, per folder and per background, twice:
 
+With `--off-edge`, the region is `fNNN_offedge.png` instead: the revealed pixels 3 px or more
+(Chebyshev) from the in-between's silhouette, eval's "revealed off edge" column, where the
+truth is background alone and the fills differ.
+
 - "plate": the diminished plates themselves (no twin). At the in-between's silhouette the
   2x2-supersampled truth mixes prop and background, which no fill can know, so this measure
   compresses the differences between fills (`--erode N` leaves that rim out);
@@ -18,7 +22,7 @@ method, per folder and per background, twice:
   outputs (`fNNN_out_<name>.png`) and prints the largest difference.
 
     pip install numpy opencv-python-headless
-    python3 scripts/inpaint_baselines.py DIR [--radius 3] [--erode 2] [--markdown]
+    python3 scripts/inpaint_baselines.py DIR [--radius 3] [--erode 2 | --off-edge] [--markdown]
 
 Not part of the build or CI. The fill times of OpenCV are printed too (median per frame,
 single call, this machine).
@@ -81,7 +85,7 @@ def under_twin(plate, black, white):
 CHECK = {"max": 0}
 
 
-def folder_scores(folder, radius, erode):
+def folder_scores(folder, radius, erode, off_edge=False):
     """{method: [psnr per frame]} of the plates and of the outputs, and {method: [seconds per
     frame]}, of one dump folder."""
     frames = sorted(
@@ -102,6 +106,11 @@ def folder_scores(folder, radius, erode):
             k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * erode + 1, 2 * erode + 1))
             revealed = cv2.erode(revealed.astype(np.uint8), k) > 0
         region = revealed & fill
+        if off_edge:
+            path = p("offedge")
+            if not os.path.exists(path):
+                sys.exit(f"{path} missing: dump again with this release's `eval --dump-fills`")
+            region = read_mask(path) & fill
         if not region.any():
             continue
         twin = None
@@ -146,14 +155,21 @@ def main():
         help="leave out revealed pixels within this many px of the region's border (0: the "
         "region eval measures)",
     )
+    ap.add_argument(
+        "--off-edge",
+        action="store_true",
+        help="measure on fNNN_offedge.png (eval's 'revealed off edge' region) instead",
+    )
     args = ap.parse_args()
+    if args.off_edge and args.erode:
+        sys.exit("--off-edge and --erode are two different regions: give one")
     folders = sorted(d for d in glob.glob(os.path.join(args.dir, "*")) if os.path.isdir(d))
     if not folders:
         sys.exit(f"no dump folders in {args.dir}")
     tables = {"plate": {}, "output": {}}
     all_times = {}
     for folder in folders:
-        scores, outputs, times = folder_scores(folder, args.radius, args.erode)
+        scores, outputs, times = folder_scores(folder, args.radius, args.erode, args.off_edge)
         bg = os.path.basename(folder).rsplit("_s", 1)[0]
         for what, got in (("plate", scores), ("output", outputs)):
             for k, v in got.items():

@@ -38,6 +38,7 @@ fn row(background: &str, method: &str, psnr: f64, frames: usize) -> MethodRow {
         prop_ssim: Some(0.91234),
         revealed_psnr_db: if frames == 0 { None } else { Some(psnr - 8.0) },
         revealed_ssim: Some(0.5),
+        revealed_off_edge_psnr_db: if frames == 0 { None } else { Some(psnr - 3.0) },
         rot_err_deg_median: Some(0.1234),
         texture_diminish_ms_median: Some(12.34),
         flicker_ours: if frames == 0 { None } else { Some(psnr / 10.0) },
@@ -105,16 +106,16 @@ fn stats_values() {
 fn eval_methods_table() {
     assert_eq!(
         methods_table(&rows()),
-        "| background | method | prop PSNR dB | prop SSIM | revealed PSNR dB | revealed SSIM | rot. err. deg | texture+diminish ms | flicker ours / truth |\n\
-         |---|---|---|---|---|---|---|---|---|\n\
-         | Wood | paper (live) | 24.50 | 0.912 | 16.50 | 0.500 | 0.123 | 12.3 | 2.45 / 1.50 |\n\
-         | Wood | ours: a & b | 26.25 | 0.912 | 18.25 | 0.500 | 0.123 | 12.3 | 2.62 / 1.50 |\n\
-         | Plain | paper (live) | 28.00 | 0.912 | - | 0.500 | 0.123 | 12.3 | - / 1.50 |\n\
-         | Plain | ours: a & b | 29.12 | 0.912 | 21.12 | 0.500 | 0.123 | 12.3 | 2.91 / 1.50 |\n"
+        "| background | method | prop PSNR dB | prop SSIM | revealed PSNR dB | revealed SSIM | revealed off edge dB | rot. err. deg | texture+diminish ms | flicker ours / truth |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n\
+         | Wood | paper (live) | 24.50 | 0.912 | 16.50 | 0.500 | 21.50 | 0.123 | 12.3 | 2.45 / 1.50 |\n\
+         | Wood | ours: a & b | 26.25 | 0.912 | 18.25 | 0.500 | 23.25 | 0.123 | 12.3 | 2.62 / 1.50 |\n\
+         | Plain | paper (live) | 28.00 | 0.912 | - | 0.500 | - | 0.123 | 12.3 | - / 1.50 |\n\
+         | Plain | ours: a & b | 29.12 | 0.912 | 21.12 | 0.500 | 26.12 | 0.123 | 12.3 | 2.91 / 1.50 |\n"
     );
     assert_eq!(
         rows()[2].json().to_string(),
-        r#"{"background":"Plain","flicker_ours":null,"flicker_truth":1.5,"frames":0,"method":"paper (live)","prop_psnr_db":28.0,"prop_ssim":0.91234,"revealed_psnr_db":null,"revealed_ssim":0.5,"rot_err_deg_median":0.1234,"texture_diminish_ms_median":12.34}"#
+        r#"{"background":"Plain","flicker_ours":null,"flicker_truth":1.5,"frames":0,"method":"paper (live)","prop_psnr_db":28.0,"prop_ssim":0.91234,"revealed_off_edge_psnr_db":null,"revealed_psnr_db":null,"revealed_ssim":0.5,"rot_err_deg_median":0.1234,"texture_diminish_ms_median":12.34}"#
     );
 }
 

@@ -49,6 +49,21 @@ fn the_tracker_agrees_with_blenders_cameras_and_the_fill_is_measured() {
         let revealed = m.psnr_revealed.expect("revealed PSNR");
         assert!(revealed > 20.0, "frame {}: {revealed} dB", m.frame);
     }
+    // Away from the twin's edge the revealed background is the fill's alone, and there the
+    // ray fill does better than over the whole region (measured: 28.05 against 26.93 dB):
+    // the pixels beside the in-between's silhouette, where Cycles' truth mixes the twin's
+    // edge into the background, carry most of the revealed error.
+    let mean = |f: fn(&pa_scene::eval::FrameMetrics) -> Option<f64>| {
+        ms.iter().map(|m| f(m).expect("measured")).sum::<f64>() / ms.len() as f64
+    };
+    let (whole, off_edge) = (
+        mean(|m| m.psnr_revealed),
+        mean(|m| m.psnr_revealed_off_edge),
+    );
+    assert!(
+        off_edge > whole + 0.5,
+        "{off_edge} dB off the edge, {whole} dB in all"
+    );
     // Flicker is measured from the second frame on, for ours and the truth.
     assert!(ms[0].flicker.is_none());
     for m in &ms[1..] {

@@ -91,6 +91,16 @@ pub fn measure_set_frame(
         ssim_prop: ssim_region(&out.rgba8, &img.truth, w, h, &img.truth_mask),
         psnr_revealed: psnr_region(&out.rgba8, &img.truth, &revealed),
         ssim_revealed: ssim_region(&out.rgba8, &img.truth, w, h, &revealed),
+        psnr_revealed_off_edge: psnr_region(
+            &out.rgba8,
+            &img.truth,
+            &crate::flicker::flicker_region(
+                &img.key_mask,
+                &img.truth_mask,
+                w,
+                crate::flicker::EDGE_MARGIN_PX,
+            ),
+        ),
         rot_err_deg,
         trans_err_mm,
         tracked: out.camera_from_marker.is_some(),

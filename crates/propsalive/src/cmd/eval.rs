@@ -52,8 +52,8 @@ pub struct Args {
     #[arg(long, default_value = "default")]
     pub scene: String,
     /// Also write, per background, seed and frame, the inputs of a fill comparison as PNGs
-    /// into this folder: `input`, `truth` (ground truth), `revealed` and `fillmask` (white =
-    /// set), each fill's diminished plate (`fill_<name>`) and output (`out_<name>`), and the
+    /// into this folder: `input`, `truth` (ground truth), `revealed`, `offedge` (the revealed
+    /// pixels 3 px or more from the in-between's silhouette) and `fillmask` (white = set), each fill's diminished plate (`fill_<name>`) and output (`out_<name>`), and the
     /// twin composited over black and over white (`twin_over_black`, `twin_over_white`: any
     /// other fill goes under the same twin); see `scripts/inpaint_baselines.py`.
     #[arg(long)]
@@ -144,7 +144,8 @@ fn dump_fills(
                             let fill: Vec<bool> = fill.as_slice().iter().map(|&v| v != 0).collect();
                             png(stem("input"), f.input.rgba8.clone())?;
                             png(stem("truth"), f.ground_truth.rgba8.clone())?;
-                            png(stem("revealed"), gray(revealed))?;
+                            png(stem("revealed"), gray(&revealed.all))?;
+                            png(stem("offedge"), gray(&revealed.off_edge))?;
                             png(stem("fillmask"), gray(&fill))?;
                         }
                         if let Some(p) = &out.passes {
@@ -275,6 +276,7 @@ pub fn run(args: Args) -> Result<()> {
                 prop_ssim: mean(all.iter().map(|f| f.ssim_prop)),
                 revealed_psnr_db: mean(all.iter().map(|f| f.psnr_revealed)),
                 revealed_ssim: mean(all.iter().map(|f| f.ssim_revealed)),
+                revealed_off_edge_psnr_db: mean(all.iter().map(|f| f.psnr_revealed_off_edge)),
                 rot_err_deg_median: median(all.iter().map(|f| f.rot_err_deg)),
                 texture_diminish_ms_median: median(
                     all.iter()
@@ -358,6 +360,7 @@ pub fn run(args: Args) -> Result<()> {
                     prop_ssim: None,
                     revealed_psnr_db: None,
                     revealed_ssim: None,
+                    revealed_off_edge_psnr_db: None,
                     rot_err_deg_median: median(v.iter().copied()),
                     texture_diminish_ms_median: None,
                     flicker_ours: None,

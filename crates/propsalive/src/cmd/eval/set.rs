@@ -29,7 +29,9 @@ pub struct SetArgs {
     /// --stride), for rows side by side.
     #[arg(long, requires = "set")]
     pub with_generated: bool,
-    /// With --set: write every output frame as PNG under OUT/<set>/<fill>/.
+    /// With --set: write every output frame as PNG under OUT/<set>/<fill>/ (with
+    /// --with-generated also OUT/generated_<scene>_s<seed>/<fill>/, beside its `truth` and
+    /// `revealed` region).
     #[arg(long, requires = "set")]
     pub save_frames: bool,
     /// Write the kit an external renderer builds the set from (kit.json, board.png and, for
@@ -210,6 +212,7 @@ fn row(background: String, method: &str, all: &[FrameMetrics]) -> MethodRow {
         prop_ssim: mean(all.iter().map(|f| f.ssim_prop)),
         revealed_psnr_db: mean(all.iter().map(|f| f.psnr_revealed)),
         revealed_ssim: mean(all.iter().map(|f| f.ssim_revealed)),
+        revealed_off_edge_psnr_db: mean(all.iter().map(|f| f.psnr_revealed_off_edge)),
         rot_err_deg_median: median(all.iter().map(|f| f.rot_err_deg)),
         texture_diminish_ms_median: median(
             all.iter()
@@ -365,6 +368,11 @@ pub fn run_sets(args: &Args) -> Result<()> {
         for ((method, settings), shadows) in
             fills().into_iter().flat_map(|f| [(f, false), (f, true)])
         {
+            let fill_dir = if shadows {
+                format!("{}_shadows", short(method))
+            } else {
+                short(method).to_string()
+            };
             let method = with_shadows(method, shadows);
             let mut all = Vec::new();
             for &seed in &args.seeds {
@@ -372,6 +380,23 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     "generated {background:?} ({}) seed {seed}: {method}",
                     args.scene
                 );
+                // --save-frames: OUT/generated_<scene>_s<seed>/<fill>/NNNN.png, and beside the
+                // fills the truth and the revealed region (white) once per seed.
+                let gen_dir = args.out.join(format!(
+                    "generated_{}_s{seed}",
+                    args.scene.replace([',', '/'], "+")
+                ));
+                let frames_dir = gen_dir.join(&fill_dir);
+                if args.set.save_frames {
+                    for d in [
+                        &frames_dir,
+                        &gen_dir.join("truth"),
+                        &gen_dir.join("revealed"),
+                    ] {
+                        std::fs::create_dir_all(d)
+                            .with_context(|| format!("creating {}", d.display()))?;
+                    }
+                }
                 let spec = SceneSpec {
                     seed,
                     width: w,
@@ -387,7 +412,28 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     frames.iter().copied(),
                     false,
                     shadows,
-                    |_, _, _, _| anyhow::Ok(()),
+                    |f, out, _, revealed| {
+                        if args.set.save_frames {
+                            let name = format!("{:04}.png", f.index);
+                            save_png(&frames_dir.join(&name), w, h, &out.rgba8)?;
+                            save_png(
+                                &gen_dir.join("truth").join(&name),
+                                w,
+                                h,
+                                &f.ground_truth.rgba8,
+                            )?;
+                            let mask: Vec<u8> = revealed
+                                .all
+                                .iter()
+                                .flat_map(|&b| {
+                                    let v = if b { 255 } else { 0 };
+                                    [v, v, v, 255]
+                                })
+                                .collect();
+                            save_png(&gen_dir.join("revealed").join(&name), w, h, &mask)?;
+                        }
+                        anyhow::Ok(())
+                    },
                 )?);
             }
             rows.push(row(
