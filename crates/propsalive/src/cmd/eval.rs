@@ -22,7 +22,7 @@ use pa_pipeline::composite::composite_twin_over;
 use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
-use pa_scene::eval::run_scene_with;
+use pa_scene::eval::run_scene_shadows;
 use pa_scene::memory::{memory_methods, run_scene_memory};
 use pa_scene::methods::{methods, Method};
 use pa_scene::scene::{Background, CameraPath};
@@ -60,18 +60,23 @@ pub struct Args {
     pub dump_fills: Option<PathBuf>,
 }
 
-/// The fills `--dump-fills` compares (all with our texturing, dilation and camera path).
-fn dump_methods() -> Vec<(&'static str, ArSettings)> {
+/// The fills `--dump-fills` compares (all with our texturing, dilation and camera path), and
+/// whether the pipeline's shadows are on (`_shadows`: the key prop's cast shadow lifted, the
+/// twin's cast; such an output holds more than its plate under the twin).
+fn dump_methods() -> Vec<(&'static str, ArSettings, bool)> {
     let ours = ArSettings::ours();
     [
-        ("rectangle", Fill::PaperRectangle),
-        ("rays", Fill::Rays),
-        ("plate", Fill::CleanPlate),
-        ("patch", Fill::Patch { plate: false }),
-        ("patch_plate", Fill::Patch { plate: true }),
+        ("rectangle", Fill::PaperRectangle, false),
+        ("rays", Fill::Rays, false),
+        ("plate", Fill::CleanPlate, false),
+        ("patch", Fill::Patch { plate: false }, false),
+        ("patch_plate", Fill::Patch { plate: true }, false),
+        ("rays_shadows", Fill::Rays, true),
+        ("plate_shadows", Fill::CleanPlate, true),
+        ("patch_shadows", Fill::Patch { plate: false }, true),
     ]
     .into_iter()
-    .map(|(n, fill)| (n, ArSettings { fill, ..ours }))
+    .map(|(n, fill, shadows)| (n, ArSettings { fill, ..ours }, shadows))
     .chain([(
         "plate_unaligned",
         ArSettings {
@@ -79,6 +84,7 @@ fn dump_methods() -> Vec<(&'static str, ArSettings)> {
             align_plate: false,
             ..ours
         },
+        false,
     )])
     .collect()
 }
@@ -115,7 +121,7 @@ fn dump_fills(
         for &seed in seeds {
             let sub = dir.join(format!("{background:?}_s{seed}").to_lowercase());
             std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
-            for (i, (name, settings)) in dump_methods().into_iter().enumerate() {
+            for (i, (name, settings, shadows)) in dump_methods().into_iter().enumerate() {
                 errln!("dump {background:?} seed {seed}: {name}");
                 let spec = SceneSpec {
                     seed,
@@ -125,12 +131,13 @@ fn dump_fills(
                     set,
                     ..SceneSpec::default()
                 };
-                run_scene_with(
+                run_scene_shadows(
                     renderer,
                     spec,
                     settings,
                     frames.iter().copied(),
                     true,
+                    shadows,
                     |f, out, _, revealed| {
                         let stem = |what: &str| sub.join(format!("f{:03}_{what}.png", f.index));
                         if i == 0 {
