@@ -53,9 +53,11 @@ pub struct Args {
     pub scene: String,
     /// Also write, per background, seed and frame, the inputs of a fill comparison as PNGs
     /// into this folder: `input`, `truth` (ground truth), `revealed`, `offedge` (the revealed
-    /// pixels 3 px or more from the in-between's silhouette) and `fillmask` (white = set), each fill's diminished plate (`fill_<name>`) and output (`out_<name>`), and the
-    /// twin composited over black and over white (`twin_over_black`, `twin_over_white`: any
-    /// other fill goes under the same twin); see `scripts/inpaint_baselines.py`.
+    /// pixels 3 px or more from the in-between's silhouette) and `fillmask` (white = set),
+    /// each fill's diminished plate (`fill_<name>`) and output (`out_<name>`; the fills named
+    /// `_shadows` with the pipeline's shadows on), and the twin composited over black and over
+    /// white (`twin_over_black`, `twin_over_white`: any other fill goes under the same twin);
+    /// see `scripts/inpaint_baselines.py`.
     #[arg(long)]
     pub dump_fills: Option<PathBuf>,
 }
