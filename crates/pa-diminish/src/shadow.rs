@@ -448,7 +448,7 @@ pub fn explained_darkening(
         .sum())
 }
 
-/// What [`outline_darkening`] found.
+/// What [`outline_darkenings`] found.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OutlineDarkening {
     /// Median log-ratio (outside over inside luminance) times the pairs: higher = a
@@ -463,18 +463,19 @@ pub struct OutlineDarkening {
 }
 
 /// Whether two frame pixels `(x, y)` show the same surface (the same print or material), for
-/// [`outline_darkening`]'s pairs: a caller that knows the set's print (the marker board) says
+/// [`outline_darkenings`]'s pairs: a caller that knows the set's print (the marker board) says
 /// so, and a pair across a tag's black and white is left out instead of read as a shadow.
 pub type SameSurface<'a> = &'a (dyn Fn([u32; 2], [u32; 2]) -> bool + Sync);
 
-/// The darkening across the outline of a hard matte: at every outline pixel of `hard` (weight
-/// at least 0.5 with a 4-neighbour below), the pixel `step_px` inside along the outline's
-/// normal and the one `step_px` outside are compared by the log-ratio of their linear
-/// luminances, `ln(outside / inside)` clamped to [-1.5, 1.5] (pairs with a pixel in
-/// `exclude`, beyond the rectangle, or a black outside, are skipped, and so are those that
-/// `same_surface`, when given, says straddle two surfaces). The score is the
-/// median log-ratio times the number of pairs; the ratio, per channel, the median of the
-/// pairs' inside / outside. `None` without pairs.
+/// The darkening across the outline of a hard matte, at each distance of `steps_px` (one
+/// scan of the outline for all): at every outline pixel of `hard` (weight at least 0.5 with a
+/// 4-neighbour below), the pixel `step_px` inside along the outline's normal and the one
+/// `step_px` outside are compared by the log-ratio of their linear luminances,
+/// `ln(outside / inside)` clamped to [-1.5, 1.5] (pairs with a pixel in `exclude`, beyond the
+/// rectangle, or a black outside, are skipped, and so are those that `same_surface`, when
+/// given, says straddle two surfaces). The score is the median log-ratio times the number of
+/// pairs; the ratio, per channel, the median of the pairs' inside / outside. `None` at a
+/// distance without pairs.
 ///
 /// A real shadow of that outline darkens every pair alike and the score grows with the
 /// visible outline; a region that is only part of the real shadow has part of its outline
@@ -482,18 +483,6 @@ pub type SameSurface<'a> = &'a (dyn Fn([u32; 2], [u32; 2]) -> bool + Sync);
 /// pairs that straddle printed high-contrast texture (a tag's squares, a sheet's edge) are a
 /// minority the median ignores, where a comparison of the region's median against its
 /// surroundings' would take a black tag or dark wood beside white paper for a shadow.
-pub fn outline_darkening(
-    image: &ImageRgba8,
-    hard: &ShadowMatte,
-    step_px: f32,
-    exclude: Option<&Mask>,
-    same_surface: Option<SameSurface<'_>>,
-) -> Result<Option<OutlineDarkening>, DiminishError> {
-    let mut pairs = outline_pairs(image, hard, &[step_px], exclude, same_surface)?;
-    Ok(pairs.pop().and_then(|mut p| p.summary()))
-}
-
-/// [`outline_darkening`] at each distance of `steps_px`, in one scan of the outline.
 pub fn outline_darkenings(
     image: &ImageRgba8,
     hard: &ShadowMatte,
@@ -507,7 +496,7 @@ pub fn outline_darkenings(
         .collect())
 }
 
-/// The pairs of [`outline_darkening`], each as its clamped log-ratio and its per-channel
+/// The pairs of [`outline_darkenings`], each as its clamped log-ratio and its per-channel
 /// inside / outside.
 #[derive(Debug, Clone, Default)]
 struct OutlinePairs {
@@ -527,7 +516,7 @@ impl OutlinePairs {
         }
     }
 
-    /// [`outline_darkening`]'s summary (the pairs reordered, not changed); `None` without
+    /// [`outline_darkenings`]'s summary (the pairs reordered, not changed); `None` without
     /// pairs.
     fn summary(&mut self) -> Option<OutlineDarkening> {
         let n = self.logs.len();
@@ -552,7 +541,7 @@ impl OutlinePairs {
 }
 
 /// The pairs across the outline of `hard` at each of `steps_px` (one scan of the outline for
-/// all): see [`outline_darkening`].
+/// all): see [`outline_darkenings`].
 fn outline_pairs(
     image: &ImageRgba8,
     hard: &ShadowMatte,
@@ -719,7 +708,7 @@ fn normal_cdf(x: f64) -> f64 {
 }
 
 /// The softness and darkening of the shadow under the hard matte `hard`, from its outline
-/// alone: the median ratio of the pairs across it ([`outline_darkening`]) at each distance of
+/// alone: the median ratio of the pairs across it ([`outline_darkenings`]) at each distance of
 /// [`OUTLINE_FIT_STEPS_PX`] follows, for a Gaussian penumbra of deviation `sigma` and a
 /// darkening `s`, `(1 - (1 - s) P(d / sigma)) / (1 - (1 - s) P(-d / sigma))` (`P` the normal
 /// distribution, `d` the distance from the edge); the candidate of `candidates_px` and the `s`

@@ -262,7 +262,7 @@ pub fn estimate_light(
     search_light(score_of, edge_of, |az, el| {
         // The direction where its outline is sharpest first; the refined one when the
         // polished gives no light.
-        let (paz, pel) = polish(view, key_triangles, az, el)?;
+        let (paz, pel) = polish(&edge_of, az, el)?;
         match light_along(view, key_triangles, paz, pel)? {
             Some(l) => Ok(Some(l)),
             None if (paz, pel) != (az, el) => light_along(view, key_triangles, az, el),
@@ -307,25 +307,20 @@ fn edge_contrast(
 }
 
 /// The direction `(az, el)` (degrees) moved to where its shadow's outline is sharpest
-/// ([`edge_contrast`]): a 5x5 grid of 2.5 degrees of azimuth and elevation around it, then one
-/// of 0.8 degrees around the best; `(az, el)` itself when its outline is not in view. The
-/// search's score weighs the darkening inside the region against its ring, which print and
-/// grain there pull; pairs across the outline compare one surface with itself.
+/// (`edge_of`, [`edge_contrast`] of a direction): a 5x5 grid of 2.5 degrees of azimuth and
+/// elevation around it, then one of 0.8 degrees around the best; `(az, el)` itself when its
+/// outline is not in view. The search's score weighs the darkening inside the region against
+/// its ring, which print and grain there pull; pairs across the outline compare one surface
+/// with itself.
 fn polish(
-    view: &ShadowView<'_>,
-    triangles: &[[Vec3; 3]],
+    edge_of: &(dyn Fn(f32, f32) -> Result<Option<f32>, DiminishError> + Sync),
     az: f32,
     el: f32,
 ) -> Result<(f32, f32), DiminishError> {
-    let Some(c0) = edge_contrast(view, triangles, toward_light(az, el))? else {
+    let Some(c0) = edge_of(az, el)? else {
         return Ok((az, el));
     };
-    let edge_of = |az: f32, el: f32| edge_contrast(view, triangles, toward_light(az, el));
-    let (_, az, el) = climb(
-        (c0, az, el),
-        &[(2.5, 2.5), (2.5 / 3.0, 2.5 / 3.0)],
-        &edge_of,
-    )?;
+    let (_, az, el) = climb((c0, az, el), &[(2.5, 2.5), (2.5 / 3.0, 2.5 / 3.0)], edge_of)?;
     Ok((az, el))
 }
 
@@ -485,26 +480,19 @@ fn light_along(
     // The softness and darkening from the pairs across the outline where enough of it is in
     // view: each pair compares one surface with itself a few pixels away, so print and wood
     // beside the region do not pose as a shadow (an outline without an edge fits no
-    // darkening).
-    if let Some(fit) = fit_outline(
+    // darkening). Else (too little of the outline in view) the medians of the softened
+    // region against its ring.
+    let fitted = match fit_outline(
         frame,
         &hard,
         &SOFTNESS_CANDIDATES_PX,
         Some(exclude),
         view.same_surface,
     )? {
-        let light = ShadowLight {
-            toward_light: dir,
-            softness_px: fit.softness_px,
-            ratio_rgb: fit.ratio.rgb,
-        };
-        return Ok((fit.ratio.luminance() <= MAX_SHADOW_LUMINANCE).then_some(light));
-    }
-    // Else (too little of the outline in view) the medians of the softened region against
-    // its ring.
-    let Some((softness_px, ratio)) =
-        fit_softness(frame, &hard, &SOFTNESS_CANDIDATES_PX, Some(exclude))?
-    else {
+        Some(fit) => Some((fit.softness_px, fit.ratio)),
+        None => fit_softness(frame, &hard, &SOFTNESS_CANDIDATES_PX, Some(exclude))?,
+    };
+    let Some((softness_px, ratio)) = fitted else {
         return Ok(None);
     };
     let light = ShadowLight {
