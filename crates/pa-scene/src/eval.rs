@@ -132,15 +132,13 @@ pub fn measure(
     Ok(measure_revealed(scene, renderer, frame, out)?.0)
 }
 
-/// [`measure`], also returning the revealed region it measured (pixels of the key pose that
-/// the in-between leaves, both at the true pose) and the region the flicker metric follows
-/// (the revealed region away from the in-between's edge, [`flicker_region`]).
+/// [`measure`], also returning the revealed regions it measured ([`Revealed`]).
 pub fn measure_revealed(
     scene: &Scene,
     renderer: &mut Renderer,
     frame: &SceneFrame,
     out: &ArFrame,
-) -> Result<(FrameMetrics, Vec<bool>, Vec<bool>), SceneError> {
+) -> Result<(FrameMetrics, Revealed), SceneError> {
     let (w, h) = (scene.spec.width as usize, scene.spec.height as usize);
     let key_time = scene.spec.key_frames[frame.key] as f32 / scene.spec.fps;
     let truth_mask = scene.prop_mask(renderer, frame.camera_from_marker, frame.time_s)?;
@@ -159,7 +157,7 @@ pub fn measure_revealed(
         }
         None => (None, None),
     };
-    let region = flicker_region(&key_mask, &truth_mask, w, EDGE_MARGIN_PX);
+    let off_edge = flicker_region(&key_mask, &truth_mask, w, EDGE_MARGIN_PX);
     let m = FrameMetrics {
         frame: frame.index,
         key: frame.key,
@@ -169,7 +167,7 @@ pub fn measure_revealed(
         ssim_prop: ssim_region(&out.rgba8, gt, w, h, &truth_mask),
         psnr_revealed: psnr_region(&out.rgba8, gt, &revealed),
         ssim_revealed: ssim_region(&out.rgba8, gt, w, h, &revealed),
-        psnr_revealed_off_edge: psnr_region(&out.rgba8, gt, &region),
+        psnr_revealed_off_edge: psnr_region(&out.rgba8, gt, &off_edge),
         rot_err_deg,
         trans_err_mm,
         tracked: out.camera_from_marker.is_some(),
@@ -178,11 +176,17 @@ pub fn measure_revealed(
         key_mask_iou: None,
         twin_mask_iou: None,
     };
-    Ok((m, revealed, region))
+    Ok((
+        m,
+        Revealed {
+            all: revealed,
+            off_edge,
+        },
+    ))
 }
 
-/// A frame's revealed background as [`measure_revealed`] finds it: `all` = in the key pose's
-/// true silhouette and not in the in-between's; `off_edge` = the part of it at least
+/// A frame's revealed background as [`measure_revealed`] finds it, both silhouettes at the
+/// true pose: `all` = in the key pose's silhouette and not in the in-between's; `off_edge` = the part of it at least
 /// [`EDGE_MARGIN_PX`] + 1 pixels (Chebyshev) from the in-between's silhouette (the region of
 /// [`FrameMetrics::psnr_revealed_off_edge`] and of the flicker metric). One value per pixel.
 pub struct Revealed {
@@ -342,22 +346,14 @@ pub fn run_scene_setup<E: From<SceneError>>(
                 i as f64 / scene.spec.fps as f64,
             )
             .map_err(SceneError::from)?;
-        let (mut m, all_px, off_edge) = measure_revealed(&scene, renderer, &f, &out)?;
+        let (mut m, revealed) = measure_revealed(&scene, renderer, &f, &out)?;
         m.flicker = flicker.step(
             &out.rgba8,
             &f.ground_truth.rgba8,
-            &off_edge,
+            &revealed.off_edge,
             f.camera_from_marker,
         );
-        each(
-            &f,
-            &out,
-            &m,
-            &Revealed {
-                all: all_px,
-                off_edge,
-            },
-        )?;
+        each(&f, &out, &m, &revealed)?;
         all.push(m);
         // Written and measured: its buffers are the next frame's.
         pipeline.recycle_frame(&mut out);

@@ -61,12 +61,25 @@ pub fn iou(a: &[bool], b: &[bool]) -> Option<f64> {
     (u > 0).then(|| i as f64 / u as f64)
 }
 
-/// Measures one output against a set frame (the set's masks define the regions).
+/// The revealed pixels of a set frame away from the in-between's edge (its masks'
+/// [`flicker_region`]): where the flicker and the revealed PSNR off the edge are measured.
+pub fn off_edge_region(set: &SetManifest, img: &SetImages) -> Vec<bool> {
+    flicker_region(
+        &img.key_mask,
+        &img.truth_mask,
+        set.width as usize,
+        EDGE_MARGIN_PX,
+    )
+}
+
+/// Measures one output against a set frame (the set's masks define the regions; `off_edge`
+/// is [`off_edge_region`] of the frame).
 pub fn measure_set_frame(
     set: &SetManifest,
     f: &SetFrame,
     img: &SetImages,
     out: &ArFrame,
+    off_edge: &[bool],
 ) -> FrameMetrics {
     let (w, h) = (set.width as usize, set.height as usize);
     let revealed: Vec<bool> = img
@@ -91,16 +104,7 @@ pub fn measure_set_frame(
         ssim_prop: ssim_region(&out.rgba8, &img.truth, w, h, &img.truth_mask),
         psnr_revealed: psnr_region(&out.rgba8, &img.truth, &revealed),
         ssim_revealed: ssim_region(&out.rgba8, &img.truth, w, h, &revealed),
-        psnr_revealed_off_edge: psnr_region(
-            &out.rgba8,
-            &img.truth,
-            &crate::flicker::flicker_region(
-                &img.key_mask,
-                &img.truth_mask,
-                w,
-                crate::flicker::EDGE_MARGIN_PX,
-            ),
-        ),
+        psnr_revealed_off_edge: psnr_region(&out.rgba8, &img.truth, off_edge),
         rot_err_deg,
         trans_err_mm,
         tracked: out.camera_from_marker.is_some(),
@@ -241,13 +245,8 @@ pub fn run_set_with<E: From<SceneError>>(
                 f64::from(f.index) / 24.0,
             )
             .map_err(SceneError::from)?;
-        let mut m = measure_set_frame(set, f, &img, &out);
-        let region = flicker_region(
-            &img.key_mask,
-            &img.truth_mask,
-            set.width as usize,
-            EDGE_MARGIN_PX,
-        );
+        let region = off_edge_region(set, &img);
+        let mut m = measure_set_frame(set, f, &img, &out, &region);
         m.flicker = flicker.step(&out.rgba8, &img.truth, &region, f.camera_from_marker);
         each(f, &img, &out, &m)?;
         all.push(m);

@@ -91,6 +91,16 @@ fn dump_methods() -> Vec<(&'static str, ArSettings, bool)> {
     .collect()
 }
 
+/// A mask as an opaque RGBA8 image: white where set, black elsewhere.
+fn mask_rgba8(mask: &[bool]) -> Vec<u8> {
+    mask.iter()
+        .flat_map(|&b| {
+            let v = if b { 255 } else { 0 };
+            [v, v, v, 255]
+        })
+        .collect()
+}
+
 /// Runs the fills of [`dump_methods`] with the pipeline's layers kept and writes the PNGs of
 /// `--dump-fills` (layout in its help). The fill mask is the key-pose silhouette as tracked,
 /// dilated as the pipeline does; the fills cover all of it (as with `--passes`).
@@ -102,23 +112,8 @@ fn dump_fills(
     frames: &[u32],
     (backgrounds, set): (&[Background], pa_scene::variant::SetOptions),
 ) -> Result<()> {
-    let png = |path: PathBuf, rgba8: Vec<u8>| -> Result<()> {
-        let img = image::RgbaImage::from_raw(w, h, rgba8).context("image size")?;
-        let mut bytes = Vec::new();
-        img.write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::Png,
-        )?;
-        pa_io::write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))
-    };
-    let gray = |m: &[bool]| -> Vec<u8> {
-        m.iter()
-            .flat_map(|&b| {
-                let v = if b { 255 } else { 0 };
-                [v, v, v, 255]
-            })
-            .collect()
-    };
+    let png = |path: PathBuf, rgba8: &[u8]| set::save_png(&path, w, h, rgba8);
+    let gray = mask_rgba8;
     for &background in backgrounds {
         for &seed in seeds {
             let sub = dir.join(format!("{background:?}_s{seed}").to_lowercase());
@@ -151,15 +146,15 @@ fn dump_fills(
                             let mut fill = Mask::zeros(w, h)?;
                             dilate(&key, settings.dilate_px, DilateShape::Disc, &mut fill)?;
                             let fill: Vec<bool> = fill.as_slice().iter().map(|&v| v != 0).collect();
-                            png(stem("input"), f.input.rgba8.clone())?;
-                            png(stem("truth"), f.ground_truth.rgba8.clone())?;
-                            png(stem("revealed"), gray(&revealed.all))?;
-                            png(stem("offedge"), gray(&revealed.off_edge))?;
-                            png(stem("fillmask"), gray(&fill))?;
+                            png(stem("input"), &f.input.rgba8)?;
+                            png(stem("truth"), &f.ground_truth.rgba8)?;
+                            png(stem("revealed"), &gray(&revealed.all))?;
+                            png(stem("offedge"), &gray(&revealed.off_edge))?;
+                            png(stem("fillmask"), &gray(&fill))?;
                         }
                         if let Some(p) = &out.passes {
-                            png(stem(&format!("fill_{name}")), p.plate_rgba8.clone())?;
-                            png(stem(&format!("out_{name}")), out.rgba8.clone())?;
+                            png(stem(&format!("fill_{name}")), &p.plate_rgba8)?;
+                            png(stem(&format!("out_{name}")), &out.rgba8)?;
                             if i == 0 {
                                 // The twin as the pipeline composites it (anti-aliased edge,
                                 // linear light) over black and over white: another fill's
@@ -179,7 +174,7 @@ fn dump_fills(
                                         h,
                                         settings.anti_alias,
                                     );
-                                    png(stem(what), bg)?;
+                                    png(stem(what), &bg)?;
                                 }
                             }
                         }

@@ -204,6 +204,15 @@ fn short(name: &str) -> &'static str {
     }
 }
 
+/// The folder of a fill's saved frames: its short name, `_shadows` with shadows.
+fn fill_dir(method: &str, shadows: bool) -> String {
+    if shadows {
+        format!("{}_shadows", short(method))
+    } else {
+        short(method).to_string()
+    }
+}
+
 fn row(background: String, method: &str, all: &[FrameMetrics]) -> MethodRow {
     MethodRow {
         background,
@@ -253,13 +262,12 @@ fn frame_table(all: &[FrameMetrics]) -> String {
     t
 }
 
-fn save_png(path: &Path, width: u32, height: u32, rgba8: &[u8]) -> Result<()> {
+pub(super) fn save_png(path: &Path, width: u32, height: u32, rgba8: &[u8]) -> Result<()> {
     let img = image::RgbaImage::from_raw(width, height, rgba8.to_vec())
         .context("output frame of the wrong size")?;
     let mut png = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
-    pa_io::write_atomic(path, &png)?;
-    Ok(())
+    pa_io::write_atomic(path, &png).with_context(|| format!("writing {}", path.display()))
 }
 
 /// Runs every fill over every set (and, with `--with-generated`, the generated wood scene);
@@ -306,11 +314,7 @@ pub fn run_sets(args: &Args) -> Result<()> {
             )]);
         for (method, settings, run) in runs {
             let shadows = run.shadows;
-            let fill_dir = if shadows {
-                format!("{}_shadows", short(method))
-            } else {
-                short(method).to_string()
-            };
+            let fill_dir = fill_dir(method, shadows);
             let method = with_shadows(method, shadows);
             let frames_dir = args.out.join(&name).join(&fill_dir);
             if args.set.save_frames {
@@ -365,14 +369,12 @@ pub fn run_sets(args: &Args) -> Result<()> {
         let frames: Vec<u32> = (0..3)
             .chain((3..49).step_by(args.stride as usize))
             .collect();
-        for ((method, settings), shadows) in
-            fills().into_iter().flat_map(|f| [(f, false), (f, true)])
+        for (i, ((method, settings), shadows)) in fills()
+            .into_iter()
+            .flat_map(|f| [(f, false), (f, true)])
+            .enumerate()
         {
-            let fill_dir = if shadows {
-                format!("{}_shadows", short(method))
-            } else {
-                short(method).to_string()
-            };
+            let fill_dir = fill_dir(method, shadows);
             let method = with_shadows(method, shadows);
             let mut all = Vec::new();
             for &seed in &args.seeds {
@@ -381,7 +383,8 @@ pub fn run_sets(args: &Args) -> Result<()> {
                     args.scene
                 );
                 // --save-frames: OUT/generated_<scene>_s<seed>/<fill>/NNNN.png, and beside the
-                // fills the truth and the revealed region (white) once per seed.
+                // fills the truth and the revealed region (white), written with the first fill
+                // (they are the same for every fill).
                 let gen_dir = args.out.join(format!(
                     "generated_{}_s{seed}",
                     args.scene.replace([',', '/'], "+")
@@ -416,21 +419,12 @@ pub fn run_sets(args: &Args) -> Result<()> {
                         if args.set.save_frames {
                             let name = format!("{:04}.png", f.index);
                             save_png(&frames_dir.join(&name), w, h, &out.rgba8)?;
-                            save_png(
-                                &gen_dir.join("truth").join(&name),
-                                w,
-                                h,
-                                &f.ground_truth.rgba8,
-                            )?;
-                            let mask: Vec<u8> = revealed
-                                .all
-                                .iter()
-                                .flat_map(|&b| {
-                                    let v = if b { 255 } else { 0 };
-                                    [v, v, v, 255]
-                                })
-                                .collect();
-                            save_png(&gen_dir.join("revealed").join(&name), w, h, &mask)?;
+                            if i == 0 {
+                                let truth = gen_dir.join("truth").join(&name);
+                                save_png(&truth, w, h, &f.ground_truth.rgba8)?;
+                                let mask = super::mask_rgba8(&revealed.all);
+                                save_png(&gen_dir.join("revealed").join(&name), w, h, &mask)?;
+                            }
                         }
                         anyhow::Ok(())
                     },
