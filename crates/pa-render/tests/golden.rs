@@ -8,7 +8,7 @@
 mod common;
 
 use glam::{DVec2, Mat4, Vec3};
-use pa_render::{CpuCamera, DirectionalLight, Draw, Lighting, RenderedFrame};
+use pa_render::{CpuCamera, DirectionalLight, Draw, Lighting, RenderedFrame, Renderer};
 
 const QUAD_W: f32 = 0.6;
 const QUAD_H: f32 = 0.45;
@@ -143,7 +143,7 @@ fn textured_quad_golden_and_analytic_corners() {
     // Background is the clear colour (transparent black).
     assert_eq!(frame.pixel(0, 0), Some([0, 0, 0, 0]));
 
-    common::assert_golden("textured_quad", &frame);
+    common::assert_golden(&renderer, "textured_quad", &frame);
 }
 
 #[test]
@@ -167,7 +167,8 @@ fn quad_at_other_resolution_follows_scaled_intrinsics() {
     assert!(checked > (w * h * 9 / 10) as usize);
 }
 
-fn cylinder_frame(angle_deg: f32) -> Option<RenderedFrame> {
+/// The skinned cylinder at `angle_deg`, and the renderer that drew it (for its goldens).
+fn cylinder_frame(angle_deg: f32) -> Option<(Renderer, RenderedFrame)> {
     let mut renderer = common::renderer_or_skip("skinned_cylinder")?;
     let mesh = renderer
         .upload_mesh(&common::bent_cylinder_mesh())
@@ -219,19 +220,19 @@ fn cylinder_frame(angle_deg: f32) -> Option<RenderedFrame> {
         frame.depth_at(x, y).is_some_and(f32::is_finite),
         "pixel ({x}, {y}) near the skinned tip is not covered"
     );
-    Some(frame)
+    Some((renderer, frame))
 }
 
 #[test]
 fn skinned_cylinder_rest_pose_golden() {
-    if let Some(frame) = cylinder_frame(0.0) {
-        common::assert_golden("skinned_cylinder_rest", &frame);
+    if let Some((renderer, frame)) = cylinder_frame(0.0) {
+        common::assert_golden(&renderer, "skinned_cylinder_rest", &frame);
     }
 }
 
 #[test]
 fn skinned_cylinder_bent_pose_golden() {
-    if let Some(frame) = cylinder_frame(-60.0) {
-        common::assert_golden("skinned_cylinder_bent", &frame);
+    if let Some((renderer, frame)) = cylinder_frame(-60.0) {
+        common::assert_golden(&renderer, "skinned_cylinder_bent", &frame);
     }
 }

@@ -19,7 +19,12 @@
 //!   with the plain look (measured at most 0.06 dB apart); relit with feathered seams (ours)
 //!   within 0.2 dB (measured 0.14 dB at frame 14, 0.06 elsewhere: the same few pixels whose
 //!   code flips between the paths, 0.06 % of them, weigh more against a twin that is 4 dB
-//!   closer to the truth; the colour bounds above hold unchanged).
+//!   closer to the truth; the colour bounds above hold unchanged). On a hardware GPU the relit
+//!   bound is 0.4 dB: on an NVIDIA H200 frame 14 measured 26.96 dB on the GPU path against
+//!   27.26 on ours, every other bound holding (codes 100 %, 99.70 % within 2/255). The gap lies
+//!   in the fallback pixels (566 stretched ones carry 0.52e6 of squared error on the GPU
+//!   against 0.46e6 on ours), where the hardware picks the model texture's mip level per 2x2
+//!   pixels and blurs more than llvmpipe does.
 
 use pa_pipeline::ar::{ArFrame, ArSettings, LiveLook, RenderPath, Texturing};
 use pa_pipeline::metrics::psnr_region;
@@ -69,6 +74,43 @@ fn compare(a: &ArFrame, b: &ArFrame) -> Diff {
     }
 }
 
+/// On a failure: both outputs and the truth under `target/golden-failures/parity_*`, and each
+/// path's squared error in the prop region split by the GPU path's sample code.
+fn explain(name: &str, frame: u32, gpu: &ArFrame, cpu: &ArFrame, truth: &[u8], prop: &[bool]) {
+    let slug: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    let dir = pa_testkit::golden::target_dir().join("golden-failures");
+    for (what, rgba8) in [
+        ("gpu", &gpu.rgba8),
+        ("cpu", &cpu.rgba8),
+        ("truth", &truth.to_vec()),
+    ] {
+        let path = dir.join(format!("parity_{slug}_f{frame}_{what}.png"));
+        pa_testkit::golden::save_png(&path, W, H, rgba8);
+        println!("wrote {}", path.display());
+    }
+    let mut by_code: std::collections::BTreeMap<u8, (usize, f64, f64)> = Default::default();
+    for (i, &inside) in prop.iter().enumerate() {
+        if !inside {
+            continue;
+        }
+        let sq = |out: &[u8]| -> f64 {
+            (0..3)
+                .map(|c| (out[i * 4 + c] as f64 - truth[i * 4 + c] as f64).powi(2))
+                .sum()
+        };
+        let e = by_code.entry(gpu.live_codes[i]).or_default();
+        e.0 += 1;
+        e.1 += sq(&gpu.rgba8);
+        e.2 += sq(&cpu.rgba8);
+    }
+    for (code, (n, g, c)) in by_code {
+        println!("  code {code}: {n} px, summed squared error gpu {g:.0} cpu {c:.0}");
+    }
+}
+
 #[test]
 fn cpu_path_matches_the_gpu_path() {
     let mut renderer = match Renderer::new() {
@@ -105,7 +147,11 @@ fn cpu_path_matches_the_gpu_path() {
         ),
     ];
     for (name, s) in settings {
-        let psnr_bound = if s.look == LiveLook::PLAIN { 0.1 } else { 0.2 };
+        let psnr_bound = match (s.look == LiveLook::PLAIN, renderer.is_software()) {
+            (true, _) => 0.1,
+            (false, true) => 0.2,
+            (false, false) => 0.4,
+        };
         let mut gpu = pipeline_for(&scene, &mut renderer, s).expect("pipeline");
         gpu.set_render_path(RenderPath::Gpu);
         let mut cpu = pipeline_for(&scene, &mut renderer, s).expect("pipeline");
@@ -141,6 +187,14 @@ fn cpu_path_matches_the_gpu_path() {
                 d.mean_abs
             );
             println!("{msg}");
+            let holds = d.mask_disagree <= 0.002
+                && d.code_agree >= 0.995
+                && d.within_2 >= 0.995
+                && d.mean_abs < 0.1
+                && (pa - pb).abs() < psnr_bound;
+            if !holds {
+                explain(name, i, &a, &b, gt, &truth);
+            }
             assert!(d.mask_disagree <= 0.002, "{msg}");
             assert!(d.code_agree >= 0.995, "{msg}");
             assert!(d.within_2 >= 0.995, "{msg}");

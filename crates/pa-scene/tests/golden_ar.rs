@@ -17,7 +17,7 @@ use pa_pipeline::ar::{ArFrame, ArSettings, Fill, LiveLook, RenderPath, Texturing
 use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec};
-use pa_testkit::golden::{assert_golden, Tolerance};
+use pa_testkit::golden::{assert_golden_in, Goldens, Tolerance};
 
 const W: u32 = 192;
 const H: u32 = 108;
@@ -32,15 +32,13 @@ fn run(renderer: &mut Renderer, scene: &Scene, settings: ArSettings, path: Rende
     pa_scene::eval::process_at_true_pose(&mut p, renderer, &f).expect("process")
 }
 
-fn golden(name: &str, out: &ArFrame) {
-    assert_golden(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
-        name,
-        W,
-        H,
-        &out.rgba8,
-        TOLERANCE,
+fn golden(renderer: &Renderer, name: &str, out: &ArFrame) {
+    let goldens = Goldens::for_adapter(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+        &renderer.adapter_info(),
+        renderer.is_software(),
     );
+    assert_golden_in(&goldens, name, W, H, &out.rgba8, TOLERANCE);
 }
 
 #[test]
@@ -119,7 +117,7 @@ fn texturing_and_fills_match_their_goldens() {
         for path in [RenderPath::Gpu, RenderPath::Cpu] {
             println!("{name}: {} path", path.name());
             let out = run(&mut renderer, &scene, settings, path);
-            golden(name, &out);
+            golden(&renderer, name, &out);
             if path == RenderPath::Cpu {
                 outputs.push(out);
             }

@@ -20,7 +20,7 @@ use pa_pipeline::metrics::psnr_region;
 use pa_render::{CpuTexture, Renderer};
 use pa_scene::eval::pipeline_for;
 use pa_scene::{Scene, SceneSpec, SheetLook};
-use pa_testkit::golden::{assert_golden, Tolerance};
+use pa_testkit::golden::{assert_golden_in, Goldens, Tolerance};
 
 use pa_scene::hide::cover_picture as picture;
 
@@ -274,7 +274,11 @@ fn hidden_board_composites_match_their_goldens() {
     let sheet = sheet_of(&scene);
     let cover = CoverImage::new(&image(&picture())).expect("cover");
     let (plate, plate_pose) = bare_plate(&mut renderer, &scene);
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
+    let goldens = Goldens::for_adapter(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+        &renderer.adapter_info(),
+        renderer.is_software(),
+    );
     for path in [RenderPath::Gpu, RenderPath::Cpu] {
         let cases = [
             ("ar_hide_cover", Hide::Cover(Box::new(cover.clone()))),
@@ -289,7 +293,7 @@ fn hidden_board_composites_match_their_goldens() {
         for (name, hide) in cases {
             println!("{name}: {} path", path.name());
             let out = process(&mut renderer, &scene, Some((hide, sheet.clone())), path, 20);
-            assert_golden(&dir, name, 192, 108, &out.rgba8, Tolerance::DEFAULT);
+            assert_golden_in(&goldens, name, 192, 108, &out.rgba8, Tolerance::DEFAULT);
         }
     }
 }

@@ -19,7 +19,7 @@ use pa_render::Renderer;
 use pa_scene::eval::pipeline_for;
 use pa_scene::scene::{marker_from_prop, set_lighting};
 use pa_scene::{Scene, SceneSpec};
-use pa_testkit::golden::{assert_golden, Tolerance};
+use pa_testkit::golden::{assert_golden_in, Goldens, Tolerance};
 
 const W: u32 = 192;
 const H: u32 = 108;
@@ -203,8 +203,12 @@ fn twin_shadow_lands_where_geometry_says_on_both_paths() {
         );
         darkened_sets.push(set);
         // The golden of the shadow composite, the same on both paths.
-        assert_golden(
-            &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+        assert_golden_in(
+            &Goldens::for_adapter(
+                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+                &c.renderer.adapter_info(),
+                c.renderer.is_software(),
+            ),
             "ar_shadow_cast",
             W,
             H,

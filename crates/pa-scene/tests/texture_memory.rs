@@ -22,7 +22,7 @@ const NONE: u8 = LiveSample::None as u8;
 use pa_scene::eval::pipeline_for;
 use pa_scene::memory::scan_orbit;
 use pa_scene::{Scene, SceneSpec};
-use pa_testkit::golden::{assert_golden, Tolerance};
+use pa_testkit::golden::{assert_golden_in, Goldens, Tolerance};
 
 const W: u32 = 192;
 const H: u32 = 108;
@@ -153,8 +153,12 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
                 assert_eq!(on.rgba8[i * 4..i * 4 + 3], off.rgba8[i * 4..i * 4 + 3]);
             }
         }
-        assert_golden(
-            &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+        assert_golden_in(
+            &Goldens::for_adapter(
+                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+                &renderer.adapter_info(),
+                renderer.is_software(),
+            ),
             "ar_texture_memory",
             W,
             H,

@@ -49,13 +49,18 @@ pub const GOLDEN_MAX_CHANNEL_DIFF: u8 = 2;
 /// ...and at least this fraction of pixels must match.
 pub const GOLDEN_MIN_MATCHING_FRACTION: f64 = 0.995;
 
-/// Compares `frame` against `tests/golden/<name>.png` ([`pa_testkit::golden::assert_golden`]:
+/// Compares `frame` against `tests/golden/<name>.png`, or the adapter's own variant
+/// ([`pa_testkit::golden::assert_golden_in`]:
 /// every channel within [`GOLDEN_MAX_CHANNEL_DIFF`]/255 on at least
 /// [`GOLDEN_MIN_MATCHING_FRACTION`] of the pixels; `UPDATE_GOLDEN=1` rewrites it; failures
 /// write `target/golden-failures/<name>.{actual,diff}.png`).
-pub fn assert_golden(name: &str, frame: &RenderedFrame) {
-    pa_testkit::golden::assert_golden(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+pub fn assert_golden(renderer: &Renderer, name: &str, frame: &RenderedFrame) {
+    pa_testkit::golden::assert_golden_in(
+        &pa_testkit::golden::Goldens::for_adapter(
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden"),
+            &renderer.adapter_info(),
+            renderer.is_software(),
+        ),
         name,
         frame.width,
         frame.height,
