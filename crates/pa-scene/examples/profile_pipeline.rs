@@ -1,6 +1,7 @@
 //! Runs the frame pipeline over and over on a few generated frames, for a profiler:
 //! `cargo build --release -p pa-scene --example profile_pipeline` then
-//! `perf record -g target/release/examples/profile_pipeline [cpu|gpu] [WIDTHxHEIGHT] [REPEATS] [PROPS] [rays|patch]`.
+//! `perf record -g target/release/examples/profile_pipeline [cpu|gpu] [WIDTHxHEIGHT] [REPEATS] [PROPS] [rays|patch|memory]`
+//! (`memory`: the ray fill with the texture memory on).
 //! Prints the median stage timings.
 
 use pa_pipeline::ar::{ArSettings, Fill, RenderPath};
@@ -47,6 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut p = pipeline_for(&scene, &mut renderer, settings)?;
     p.set_render_path(path);
+    p.set_texture_memory(args.get(5).is_some_and(|a| a == "memory"));
     let mut t: Vec<[f64; 6]> = Vec::new();
     for k in 0..repeats {
         let f = &frames[k % frames.len()];
