@@ -9,6 +9,7 @@ pub mod composite;
 pub mod cpu_twin;
 pub mod footprint;
 pub mod framing;
+pub mod grazing;
 pub mod metrics;
 pub mod register;
 pub mod shading;

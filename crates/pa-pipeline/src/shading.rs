@@ -220,17 +220,62 @@ pub fn irradiance_samples_from<'a>(
     view: &KeyView<'_>,
     max_samples: usize,
 ) -> Vec<IrradianceSample> {
+    let mut out = Vec::new();
+    visible_vertices(
+        model,
+        posed,
+        world_from_model,
+        view,
+        max_samples,
+        MIN_FACING_COS,
+        |v| {
+            out.push(IrradianceSample {
+                normal_world: v.normal_world,
+                position_world: v.position_world,
+                ratio_rgb: std::array::from_fn(|c| v.frame_rgb[c] / v.albedo[c]),
+            })
+        },
+    );
+    out
+}
+
+/// A vertex of a posed key-pose primitive that the frame shows (see [`visible_vertices`]).
+pub(crate) struct VisibleVertex {
+    /// Index of its primitive in the `posed` iteration, and of the vertex in the primitive.
+    pub primitive: usize,
+    pub vertex: usize,
+    pub normal_world: Vec3,
+    pub position_world: Vec3,
+    /// Cosine between the normal and the direction to the camera.
+    pub facing_cos: f32,
+    /// The material's linear albedo there (at least [`MIN_ALBEDO`] per channel).
+    pub albedo: [f32; 3],
+    /// The frame's linear colour at the vertex's pixel.
+    pub frame_rgb: [f32; 3],
+}
+
+/// Calls `visit` for about `max_samples` vertices (strided evenly) of the posed primitives
+/// (as [`irradiance_samples_from`] takes them) that face the camera by at least
+/// `min_facing_cos`, lie on the key-pose depth at their pixel, and have a usable albedo.
+pub(crate) fn visible_vertices<'a>(
+    model: &Model,
+    posed: impl Iterator<Item = (usize, usize, &'a [Vec3], &'a [Vec3])> + Clone,
+    world_from_model: Mat4,
+    view: &KeyView<'_>,
+    max_samples: usize,
+    min_facing_cos: f64,
+    mut visit: impl FnMut(VisibleVertex),
+) {
     let total: usize = posed.clone().map(|p| p.2.len()).sum();
     let stride = (total / max_samples.max(1)).max(1);
     let (w, h) = (view.width as usize, view.height as usize);
     if view.frame_rgba8.len() != w * h * 4 || view.key_depth.len() != w * h {
-        return Vec::new();
+        return;
     }
     let camera_from_model = (view.camera_from_world * world_from_model).as_dmat4();
     let world_from_model_rot = glam::Mat3::from_mat4(world_from_model);
     let lut = pa_raster::srgb::decode_lut();
-    let mut out = Vec::new();
-    for (mesh, primitive, positions, normals) in posed {
+    for (index, (mesh, primitive, positions, normals)) in posed.enumerate() {
         let Some(prim) = model
             .meshes
             .get(mesh)
@@ -252,7 +297,8 @@ pub fn irradiance_samples_from<'a>(
             let nc = camera_from_model
                 .transform_vector3(nrm.as_dvec3())
                 .normalize_or_zero();
-            if pc.z <= 1e-6 || nc.dot(-pc.normalize()) < MIN_FACING_COS {
+            let facing_cos = nc.dot(-pc.normalize());
+            if pc.z <= 1e-6 || facing_cos < min_facing_cos {
                 continue;
             }
             let Some(px) = view.camera.pixel_from_camera(pc) else {
@@ -271,20 +317,22 @@ pub fn irradiance_samples_from<'a>(
             if albedo.iter().any(|&a| a < MIN_ALBEDO) {
                 continue;
             }
-            let frame = &view.frame_rgba8[i * 4..i * 4 + 3];
-            let ratio_rgb = std::array::from_fn(|c| lut[frame[c] as usize] / albedo[c]);
             let normal_world = (world_from_model_rot * *nrm).normalize_or_zero();
             if normal_world == Vec3::ZERO {
                 continue;
             }
-            out.push(IrradianceSample {
+            let frame = &view.frame_rgba8[i * 4..i * 4 + 3];
+            visit(VisibleVertex {
+                primitive: index,
+                vertex: v,
                 normal_world,
                 position_world: world_from_model.transform_point3(*pos),
-                ratio_rgb,
+                facing_cos: facing_cos as f32,
+                albedo,
+                frame_rgb: std::array::from_fn(|c| lut[frame[c] as usize]),
             });
         }
     }
-    out
 }
 
 /// Linear albedo of the material at `uv` (nearest texel, repeat wrap).

@@ -646,6 +646,11 @@ size_m = 0.05
         let (_d, p) = write(&format!("{SHOT}\n[texture]\nsun = false\n"));
         let first_order = Shot::load(&p).expect("valid").texture.look();
         assert!(first_order.relight && first_order.feather && !first_order.sun);
+        // The grazing reflection off; and off with relighting, which it belongs to.
+        let (_d, p) = write(&format!("{SHOT}\n[texture]\ngrazing = false\n"));
+        let matte = Shot::load(&p).expect("valid").texture.look();
+        assert!(matte.relight && matte.sun && !matte.grazing);
+        assert!(!plain.texture.look().grazing);
 
         let (_d, p) = write(&format!("{SHOT}\n[texture]\nrelit = true\n"));
         let err = Shot::load(&p).expect_err("unknown key").to_string();

@@ -6,6 +6,7 @@
 //! relight = false   # do not shade the live texture at the in-between's normals
 //! sun = false       # relight with the first-order light only (no sun, no cast shadows)
 //! feather = false   # hard seams between live and fallback colour
+//! grazing = false   # no grazing reflection (the glossy rim the key view did not show)
 //! ```
 
 use serde::{Deserialize, Serialize};
@@ -21,6 +22,9 @@ pub struct ShotTexture {
     pub feather: bool,
     /// Relight with the set's sun and the twin's own cast shadows.
     pub sun: bool,
+    /// With `relight`: the reflection a glossy prop shows at grazing angles
+    /// ([`crate::grazing`]).
+    pub grazing: bool,
 }
 
 impl Default for ShotTexture {
@@ -30,6 +34,7 @@ impl Default for ShotTexture {
             relight: look.relight,
             feather: look.feather,
             sun: look.sun,
+            grazing: look.grazing,
         }
     }
 }
@@ -46,6 +51,7 @@ impl ShotTexture {
             relight: self.relight,
             feather: self.feather,
             sun: self.relight && self.sun,
+            grazing: self.relight && self.grazing,
         }
     }
 }

@@ -115,6 +115,9 @@ pub struct LiveParams {
     /// fallback and relights live samples instead of `fallback_irradiance`, with each
     /// vertex's [`CpuLiveMesh::sun_lit`](crate::CpuLiveMesh::sun_lit).
     pub sun: Option<crate::sun::SunLight>,
+    /// Light reflected at grazing angles, linear RGB ([`crate::look`], "Grazing
+    /// reflection"); zero (the default) for none. Applied with `relight` only.
+    pub grazing_rgb: [f32; 3],
 }
 
 impl LiveParams {
@@ -132,6 +135,7 @@ impl LiveParams {
             relight: false,
             feather: false,
             sun: None,
+            grazing_rgb: [0.0; 3],
         }
     }
 }

@@ -26,8 +26,31 @@
 //! `ramp(x, w) = s(clamp(x / w, 0, 1))` with `s(t) = t^2 (3 - 2 t)`; `w <= 0` gives a step
 //! (`x > 0`); a product of at least [`FULL_WEIGHT_MIN`] counts as 1. The twin's colour is
 //! `w live + (1 - w) fallback` (linear light).
+//!
+//! **Grazing reflection.** A glossy prop reflects its surroundings more where the camera sees
+//! it edge-on (Fresnel): the frame's colour is `c = a E(n_k) + S g(cos_k)`, with Schlick's
+//! factor `g(cos) = (1 - cos)^5` of the cosine between the normal and the direction to the
+//! camera, and `S` the reflected light per channel (`LiveParams::grazing_rgb`, fitted on the
+//! key frame by the pipeline; zero for a matte prop). The twin subtracts the key pose's
+//! reflection before relighting and adds the in-between's: `max(c - S g_k, 0) E(n_i) / E(n_k)
+//! + S g_i`, and its fallback gets `+ S g_i` too. Applied with relighting only.
 
 use glam::Vec3;
+
+/// Schlick's grazing factor `(1 - cos)^5` at a surface point `p` with normal `n`, both in the
+/// camera frame (`cos` the facing cosine, clamped to [0, 1]; 1 where either is zero).
+#[inline]
+pub fn grazing(p: Vec3, n: Vec3) -> f32 {
+    let len2 = n.dot(n) * p.dot(p);
+    let cos = if len2 > 0.0 {
+        -n.dot(p) / len2.sqrt()
+    } else {
+        0.0
+    };
+    let t = 1.0 - cos.clamp(0.0, 1.0);
+    let t2 = t * t;
+    t2 * t2 * t
+}
 
 /// Smallest relighting ratio `E(n_i) / E(n_k)` per channel (measured on the generated scene,
 /// frames 25-50 degrees from the key: 0.25, 0.5, 0.7, 0.85 and 1 gave 25.79, 26.00, 26.26,

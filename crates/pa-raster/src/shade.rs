@@ -329,6 +329,15 @@ impl ShadeContext<'_> {
         } else {
             [1.0; 3]
         };
+        // The reflection at grazing angles, at the key pose and the in-between (look.rs).
+        let grazing = params.relight && params.grazing_rgb != [0.0; 3];
+        let (g_key, g_anim) = if grazing {
+            let [pc, nc, pa, na] = f.lookup_inputs();
+            (look::grazing(pc, nc), look::grazing(pa, na))
+        } else {
+            (0.0, 0.0)
+        };
+        let s = params.grazing_rgb;
         let fallback_rgb = |a: &[f32; 4]| -> [f32; 3] {
             let e = match &params.sun {
                 Some(sun) => sun.irradiance(normal, lit[1]),
@@ -341,11 +350,20 @@ impl ShadeContext<'_> {
                     memory[c] *= factor[c];
                 }
             }
-            crate::memory::remembered_or(memory, lit)
+            let rgb = crate::memory::remembered_or(memory, lit);
+            if grazing {
+                std::array::from_fn(|c| rgb[c] + s[c] * g_anim)
+            } else {
+                rgb
+            }
         };
         if valid {
             let mut rgb = frame.sample_linear(pixel[0], pixel[1], self.lut);
-            if params.relight {
+            if grazing {
+                rgb = std::array::from_fn(|c| {
+                    (rgb[c] - s[c] * g_key).max(0.0) * factor[c] + s[c] * g_anim
+                });
+            } else if params.relight {
                 rgb = std::array::from_fn(|c| rgb[c] * factor[c]);
             }
             if weight < 1.0 {

@@ -217,6 +217,11 @@ pub struct LiveTexturing<'a> {
     /// Per vertex of the draw's mesh, the fraction of the sun it receives, `[key pose,
     /// animated pose]` (empty: fully lit).
     pub sun_lit: &'a [[f32; 2]],
+    /// Light reflected at grazing angles, linear RGB (`pa_raster::look`, "Grazing
+    /// reflection"): with `relight`, a live sample loses the key pose's `grazing_rgb (1 -
+    /// cos_key)^5` before relighting and gains the in-between's, and the fallback gains the
+    /// in-between's. Zero (the default): none.
+    pub grazing_rgb: [f32; 3],
 }
 
 impl<'a> LiveTexturing<'a> {
@@ -248,6 +253,7 @@ impl<'a> LiveTexturing<'a> {
             feather: false,
             sun: None,
             sun_lit: &[],
+            grazing_rgb: [0.0; 3],
         }
     }
 

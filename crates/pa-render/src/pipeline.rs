@@ -75,6 +75,7 @@ pub(crate) struct LiveUniforms {
     pub sun_toward_light: [f32; 4],
     pub sun_ambient: [f32; 4],
     pub sun_direct: [f32; 4],
+    pub grazing: [f32; 4],
 }
 
 /// Everything created once per renderer.

@@ -32,6 +32,7 @@ fn looks() -> [(&'static str, LiveLook); 5] {
                 relight: true,
                 feather: false,
                 sun: true,
+                grazing: true,
             },
         ),
         (
@@ -40,6 +41,7 @@ fn looks() -> [(&'static str, LiveLook); 5] {
                 relight: false,
                 feather: true,
                 sun: false,
+                grazing: false,
             },
         ),
         (

@@ -139,6 +139,7 @@ pub fn methods() -> Vec<Method> {
                     relight: true,
                     feather: false,
                     sun: true,
+                    grazing: true,
                 },
                 ..ours
             },
@@ -152,6 +153,7 @@ pub fn methods() -> Vec<Method> {
                     relight: false,
                     feather: true,
                     sun: false,
+                    grazing: false,
                 },
                 ..ours
             },
@@ -163,6 +165,18 @@ pub fn methods() -> Vec<Method> {
             settings: ArSettings {
                 look: LiveLook {
                     sun: false,
+                    ..LiveLook::RELIT_FEATHERED
+                },
+                ..ours
+            },
+            key_frames: vec![0],
+            camera_path: CameraPath::Handheld,
+        },
+        Method {
+            name: "ours: no grazing reflection",
+            settings: ArSettings {
+                look: LiveLook {
+                    grazing: false,
                     ..LiveLook::RELIT_FEATHERED
                 },
                 ..ours
@@ -200,6 +214,7 @@ mod tests {
                 "ours: relit, hard seams",
                 "ours: feathered seams, not relit",
                 "ours: first-order light (no sun, no cast shadows)",
+                "ours: no grazing reflection",
             ]
         );
         let keys: Vec<_> = m.iter().map(|m| m.key_frames.clone()).collect();
@@ -226,6 +241,7 @@ mod tests {
                 13 => assert!(l.relight && !l.feather),
                 14 => assert!(!l.relight && l.feather),
                 15 => assert!(l.relight && l.feather && !l.sun),
+                16 => assert!(l.relight && l.sun && !l.grazing),
                 _ if paper => assert_eq!(*l, LiveLook::PLAIN, "{}", m[i].name),
                 _ => assert_eq!(*l, LiveLook::RELIT_FEATHERED, "{}", m[i].name),
             }

@@ -48,6 +48,7 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
         "| Blender: blender_bust | ours: live + visibility, ray fill, shadows |",
         "| Blender: blender_bust | ours with clean plate, shadows |",
         "| Blender: blender_bust | ours: plain look (not relit, hard seams) |",
+        "| Blender: blender_bust | ours: no grazing reflection |",
         "| Blender: blender_bust | ours: + texture memory |",
     ] {
         let line = report
@@ -72,9 +73,11 @@ fn eval_set_reports_a_row_per_fill_with_flicker() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
             .expect("parses");
-    // 4 frames x (7 methods (rectangle, rays, plain look, first-order light, plate aligned
-    // and not, patch) x shadows off and on, and rays with the texture memory).
-    assert_eq!(json["frames"].as_array().map(Vec::len), Some(60));
+    // 4 frames x (8 methods (rectangle, rays, plain look, first-order light, no grazing
+    // reflection, plate aligned and not, patch) x shadows off and on, and rays with the
+    // texture memory).
+    assert_eq!(json["frames"].as_array().map(Vec::len), Some(68));
+    assert!(out.join("blender_bust/no_grazing/0006.png").is_file());
     assert!(out.join("blender_bust/first_order/0006.png").is_file());
     assert!(out.join("blender_bust/plate/0006.png").is_file());
     assert!(out.join("blender_bust/plate_unaligned/0006.png").is_file());

@@ -120,6 +120,10 @@ pub struct LiveLook {
     /// instead of the first-order light alone: a part that turns away from the sun, or into
     /// the shadow of another part, darkens to the ambient.
     pub sun: bool,
+    /// With `relight`: add the light a glossy prop reflects where the in-between turns a
+    /// surface edge-on to the camera, and take the key view's out ([`crate::grazing`],
+    /// `pa_raster::look`); measured on the key frame, zero for a matte prop.
+    pub grazing: bool,
 }
 
 impl LiveLook {
@@ -128,12 +132,14 @@ impl LiveLook {
         relight: false,
         feather: false,
         sun: false,
+        grazing: false,
     };
     /// Relighting and feathered seams (our default, [`ArSettings::ours`]).
     pub const RELIT_FEATHERED: Self = Self {
         relight: true,
         feather: true,
         sun: true,
+        grazing: true,
     };
 }
 

@@ -94,6 +94,9 @@ pub struct ArPipeline {
     gpu_key_depth: gpu_region::RegionDepth,
     /// The sun's direction over the take ([`sun::SunTrack`]); forgotten by `reset_tracker`.
     sun_track: sun::SunTrack,
+    /// The key prop's grazing reflection over the take ([`crate::grazing`]); forgotten by
+    /// `reset_tracker`.
+    grazing_track: crate::grazing::GrazingTrack,
     diminisher: Diminisher,
     /// Clean plate image and its `camera_from_marker`.
     plate: Option<(ImageRgba8, Mat4)>,
@@ -241,6 +244,7 @@ impl ArPipeline {
             visibility: None,
             gpu_key_depth: gpu_region::RegionDepth::default(),
             sun_track: sun::SunTrack::default(),
+            grazing_track: crate::grazing::GrazingTrack::default(),
             diminisher: Diminisher::new(),
             plate: None,
             frame_index: 0,
@@ -307,10 +311,12 @@ impl ArPipeline {
     }
 
     /// Forgets the tracker's history (state, filter, search region), the patch fill's previous
-    /// result and the sun's direction before a frame that starts a new sequence.
+    /// result, the sun's direction and the grazing reflection before a frame that starts a new
+    /// sequence.
     pub fn reset_tracker(&mut self) {
         self.patch_prior = None;
         self.sun_track = sun::SunTrack::default();
+        self.grazing_track = crate::grazing::GrazingTrack::default();
         self.reset_tracking();
     }
 

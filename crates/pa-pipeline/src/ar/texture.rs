@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use glam::Mat4;
+use glam::{Mat4, Vec3};
 use pa_model::anim;
 use pa_model::skin::PosedPrimitive;
 use pa_render::{CpuCamera, CpuTexture, Draw, LiveCamera, LiveDraw, LiveTexturing, Renderer};
@@ -14,6 +14,7 @@ use super::sun::{sun_on_primitives, SunPrimitive};
 use super::{ms, ArError, ArPipeline, FrameView, StageTimings, Texturing};
 use crate::composite::bounding_box;
 use crate::cpu_twin::CpuTwin;
+use crate::grazing::{grazing_rgb, GrazingSamples, GrazingTrack};
 use crate::shading::{
     irradiance_samples, irradiance_samples_from, Irradiance, IrradianceSample, KeyDepth, KeyView,
 };
@@ -276,17 +277,18 @@ impl ArPipeline {
                     };
                     // The fallback's shading: the set's light measured on the visible key props
                     // (ours), or one colour gain (the baseline without visibility).
+                    // The key frame as the light fits see it (ours: the key depth read back).
+                    let key_view = KeyView {
+                        camera: &camera_model,
+                        camera_from_world: camera_from_marker,
+                        frame_rgba8: rgba8,
+                        key_depth: KeyDepth::Metres(self.gpu_key_depth.depth()),
+                        width,
+                        height,
+                    };
                     let irradiance = if visibility {
-                        let view = KeyView {
-                            camera: &camera_model,
-                            camera_from_world: camera_from_marker,
-                            frame_rgba8: rgba8,
-                            key_depth: KeyDepth::Metres(self.gpu_key_depth.depth()),
-                            width,
-                            height,
-                        };
                         key_light(props.iter().zip(&posed_keys), |(p, key), n| {
-                            irradiance_samples(&p.model, key, Mat4::IDENTITY, &view, n)
+                            irradiance_samples(&p.model, key, Mat4::IDENTITY, &key_view, n)
                         })
                     } else {
                         (Irradiance::constant(gain.unwrap_or([1.0; 3])), Vec::new())
@@ -318,6 +320,24 @@ impl ArPipeline {
                         sun_on_primitives(&irradiance, &samples, known, track, &prims, &mut sun_lit)
                     } else {
                         None
+                    };
+                    let grazing = if visibility && look.relight && look.grazing {
+                        let posed = props.iter().zip(&posed_keys).map(|(p, key)| {
+                            let prims = key.iter().map(|k| {
+                                (
+                                    k.mesh,
+                                    k.primitive,
+                                    k.positions.as_slice(),
+                                    k.normals.as_slice(),
+                                )
+                            });
+                            (&p.model, prims)
+                        });
+                        let track = &mut self.grazing_track;
+                        let sun = sun.as_ref();
+                        grazing_light(posed, &key_view, &irradiance, sun, &sun_lit, track)
+                    } else {
+                        [0.0; 3]
                     };
                     let vis = if visibility {
                         self.visibility.as_ref()
@@ -357,6 +377,7 @@ impl ArPipeline {
                                         live.max_stretch = MAX_STRETCH;
                                         live.relight = look.relight;
                                         live.feather = look.feather;
+                                        live.grazing_rgb = grazing;
                                     }
                                     if let Some(sun) = sun {
                                         let lit = sun_keys
@@ -506,6 +527,7 @@ impl ArPipeline {
         let light_on_key = matches!(settings.texturing, Texturing::Live { visibility: true });
         let live = matches!(settings.texturing, Texturing::Live { .. });
         let (sun_track, sun_lit) = (&mut self.sun_track, &mut cpu.sun_lit);
+        let grazing_track = &mut self.grazing_track;
         let fitted = cpu.renderer.rasterise_twin_beside(
             &camera,
             camera_from_marker,
@@ -556,13 +578,35 @@ impl ArPipeline {
                 } else {
                     None
                 };
-                Some((light, sun))
+                let grazing = (settings.look.relight && settings.look.grazing).then(|| {
+                    let posed = twins.iter().zip(props).map(|(tw, p)| {
+                        let prims = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
+                            (
+                                tp.mesh,
+                                tp.primitive,
+                                k.positions_world.as_slice(),
+                                k.normals_world.as_slice(),
+                            )
+                        });
+                        (&p.model, prims)
+                    });
+                    grazing_light(
+                        posed,
+                        &key_view,
+                        &light,
+                        sun.as_ref(),
+                        sun_lit,
+                        grazing_track,
+                    )
+                });
+                Some((light, sun, grazing.unwrap_or([0.0; 3])))
             },
         );
         let shading = match settings.texturing {
             Texturing::ModelTexture => pa_raster::Shading::Albedo,
             Texturing::Live { .. } => {
-                if let Some((light, sun)) = fitted {
+                if let Some((light, sun, grazing)) = fitted {
+                    params.grazing_rgb = grazing;
                     params.fallback_irradiance = light.rows;
                     params.visibility = true;
                     params.min_facing_cos = VISIBLE_MIN_FACING_COS;
@@ -596,6 +640,38 @@ impl ArPipeline {
             live_codes,
         })
     }
+}
+
+/// The key props' grazing reflection (`crate::grazing`), smoothed over the take by `track`:
+/// `posed` gives each prop's model and posed key-pose primitives (world frame), in the order
+/// of `sun_lit`'s primitives (each vertex's fraction of the sun, `[key, in-between]`).
+fn grazing_light<'a, P>(
+    posed: impl Iterator<Item = (&'a pa_model::Model, P)>,
+    view: &KeyView<'_>,
+    light: &Irradiance,
+    sun: Option<&pa_raster::sun::SunLight>,
+    sun_lit: &[Vec<[f32; 2]>],
+    track: &mut GrazingTrack,
+) -> [f32; 3]
+where
+    P: Iterator<Item = (usize, usize, &'a [Vec3], &'a [Vec3])> + Clone,
+{
+    let mean = light.rows.map(|r| r[0]);
+    let mut samples = GrazingSamples::default();
+    let mut base = 0;
+    for (model, prims) in posed {
+        let count = prims.clone().count();
+        let at = |prim: usize, v: usize, n: Vec3| match sun {
+            Some(sun) => {
+                let lit = sun_lit.get(base + prim).and_then(|l| l.get(v));
+                sun.irradiance(n, lit.map_or(1.0, |l| l[0]))
+            }
+            None => light.at(n),
+        };
+        samples.add(model, prims, Mat4::IDENTITY, view, mean, at);
+        base += count;
+    }
+    grazing_rgb(track.update(samples.kappa()), mean)
 }
 
 /// The set's light on the visible key props, fitted over all of them: `samples_of(prop, n)`

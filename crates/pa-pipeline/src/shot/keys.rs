@@ -44,7 +44,7 @@ pub const KNOWN_KEYS: &[(&str, &[&str])] = &[
     ),
     ("key_poses", &["name", "frame", "marker_id"]),
     ("scan", &["input"]),
-    ("texture", &["relight", "feather", "sun"]),
+    ("texture", &["relight", "feather", "sun", "grazing"]),
     ("camera", &["calibration", "fov_y_deg"]),
     (
         "marker",

@@ -179,13 +179,13 @@ impl NewShot {
         );
         line("# shades it at the in-between's normals with the set's light; sun models that light");
         line("# as a sun with the twin's own cast shadows where the key prop's shading fits one;");
-        line(
-            "# feather softens the seams between live and fallback colour. false switches one off.",
-        );
+        line("# feather softens the seams between live and fallback colour; grazing adds the");
+        line("# reflection a glossy prop shows edge-on (zero for a matte one). false switches one off.");
         line("# [texture]");
         line("# relight = false");
         line("# sun = false");
         line("# feather = false");
+        line("# grazing = false");
         text
     }
 }

@@ -75,3 +75,16 @@ fn blend_weights() {
     assert_eq!(blend(a, b, 0.0), b);
     assert_eq!(blend(a, b, 0.25), [0.25, 0.75, 0.5]);
 }
+
+#[test]
+fn grazing_is_zero_head_on_one_edge_on_and_schlick_between() {
+    let p = Vec3::new(0.0, 0.0, 2.0);
+    assert_eq!(grazing(p, Vec3::new(0.0, 0.0, -1.0)), 0.0);
+    assert_eq!(grazing(p, Vec3::new(1.0, 0.0, 0.0)), 1.0);
+    // Facing cosine 0.5: (1 - 0.5)^5.
+    let n = Vec3::new(0.75f32.sqrt(), 0.0, -0.5);
+    assert!((grazing(p, n) - 1.0 / 32.0).abs() < 1e-6);
+    // Facing away clamps to edge-on; no normal counts as edge-on.
+    assert_eq!(grazing(p, Vec3::new(0.0, 0.0, 1.0)), 1.0);
+    assert_eq!(grazing(p, Vec3::ZERO), 1.0);
+}

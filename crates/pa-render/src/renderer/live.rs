@@ -157,6 +157,8 @@ impl Renderer {
                     l.depth_tolerance_m,
                 ];
                 u.fallback_irradiance = l.fallback_irradiance;
+                let g = l.grazing_rgb;
+                u.grazing = [g[0], g[1], g[2], 0.0];
                 u.stretch = [
                     l.max_stretch.max(0.0),
                     f32::from(u8::from(l.relight)),

@@ -7,7 +7,7 @@
 @group(2) @binding(0) var base_color_texture: texture_2d<f32>;
 @group(2) @binding(1) var base_color_sampler: sampler;
 
-// Per-draw live-texturing uniforms (432 bytes).
+// Per-draw live-texturing uniforms (448 bytes).
 struct LiveUniforms {
     key_world_from_mesh: mat4x4<f32>,
     // The camera that took the frame (OpenCV axes).
@@ -42,6 +42,9 @@ struct LiveUniforms {
     sun_toward_light: vec4<f32>,
     sun_ambient: vec4<f32>,
     sun_direct: vec4<f32>,
+    // rgb: light reflected at grazing angles (pa_raster::look, "Grazing reflection"), applied
+    // with relighting; zero for none.
+    grazing: vec4<f32>,
 }
 
 @group(3) @binding(0) var<uniform> live: LiveUniforms;
@@ -228,6 +231,16 @@ fn facing_cos(p: vec3<f32>, n: vec3<f32>) -> f32 {
     return select(-1.0, -dot(n, p) * inverseSqrt(len2), len2 > 0.0);
 }
 
+// Schlick's grazing factor (1 - cos)^5 of the facing cosine, clamped to [0, 1]
+// (pa_raster::look::grazing).
+fn schlick(p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let len2 = dot(n, n) * dot(p, p);
+    let cos = select(0.0, -dot(n, p) / sqrt(len2), len2 > 0.0);
+    let t = 1.0 - clamp(cos, 0.0, 1.0);
+    let t2 = t * t;
+    return t2 * t2 * t;
+}
+
 fn live_lookup(pc: vec3<f32>, nc: vec3<f32>, pa: vec3<f32>, na: vec3<f32>) -> LiveLookup {
     var out: LiveLookup;
     out.code = LIVE_OUTSIDE;
@@ -378,11 +391,22 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
         if (relight && in.memory.a > 0.0) {
             memory_rgb *= ratio;
         }
-        let fallback = memory_rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit;
+        // The reflection at grazing angles: the key pose's out, the in-between's in.
+        let s = live.grazing.rgb;
+        let grazing = relight && any(s != vec3<f32>(0.0));
+        var g_key = 0.0;
+        var g_anim = 0.0;
+        if (grazing) {
+            g_key = schlick(in.key_camera, in.key_normal_camera);
+            g_anim = schlick(in.anim_camera, in.anim_normal_camera);
+        }
+        let fallback = memory_rgb + clamp(1.0 - in.memory.a, 0.0, 1.0) * lit + s * g_anim;
         if (code == LIVE_VALID) {
             let uv = (lookup.pixel + vec2<f32>(0.5)) / live.frame_size.xy;
             var c = textureSampleLevel(frame_texture, frame_sampler, uv, 0.0).rgb;
-            if (relight) {
+            if (grazing) {
+                c = max(c - s * g_key, vec3<f32>(0.0)) * ratio + s * g_anim;
+            } else if (relight) {
                 c *= ratio;
             }
             rgb = select(mix(fallback, c, lookup.weight), c, lookup.weight >= 1.0);

@@ -210,6 +210,8 @@ pub struct SetRun {
     pub shadows: bool,
     /// The texture memory ([`ArPipeline::set_texture_memory`]).
     pub memory: bool,
+    /// The texture stage's render path; `None`: the one the pipeline picks for the adapter.
+    pub render_path: Option<pa_pipeline::ar::RenderPath>,
 }
 
 /// [`run_set`] with `run`'s switches; also returns the light the pipeline used at the end.
@@ -223,6 +225,9 @@ pub fn run_set_with<E: From<SceneError>>(
     let mut pipeline = pipeline_for_set(set, renderer, settings)?;
     pipeline.set_shadows(run.shadows);
     pipeline.set_texture_memory(run.memory);
+    if let Some(path) = run.render_path {
+        pipeline.set_render_path(path);
+    }
     let mut flicker = Flicker::new(set.intrinsics);
     if let Some(table_m) = set.table_m {
         flicker = flicker.with_plane_extent(f64::from(table_m) * 0.5);

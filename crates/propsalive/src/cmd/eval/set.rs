@@ -85,7 +85,7 @@ pub fn write_kit(args: &SetArgs, dir: &Path) -> Result<()> {
 }
 
 /// The fills compared on a set, with the generated scenes' method names.
-fn fills() -> [(&'static str, ArSettings); 7] {
+fn fills() -> [(&'static str, ArSettings); 8] {
     let ours = ArSettings::ours();
     [
         (
@@ -108,6 +108,16 @@ fn fills() -> [(&'static str, ArSettings); 7] {
             ArSettings {
                 look: pa_pipeline::ar::LiveLook {
                     sun: false,
+                    ..pa_pipeline::ar::LiveLook::RELIT_FEATHERED
+                },
+                ..ours
+            },
+        ),
+        (
+            "ours: no grazing reflection",
+            ArSettings {
+                look: pa_pipeline::ar::LiveLook {
+                    grazing: false,
                     ..pa_pipeline::ar::LiveLook::RELIT_FEATHERED
                 },
                 ..ours
@@ -189,6 +199,8 @@ fn short(name: &str) -> &'static str {
         "rectangle"
     } else if name.contains("first-order") {
         "first_order"
+    } else if name.contains("grazing") {
+        "no_grazing"
     } else if name.contains("patch") {
         "patch"
     } else if name.contains("relit") {
@@ -299,7 +311,7 @@ pub fn run_sets(args: &Args) -> Result<()> {
                 [false, true].map(|shadows| {
                     let run = SetRun {
                         shadows,
-                        memory: false,
+                        ..SetRun::default()
                     };
                     (m, s, run)
                 })
@@ -308,8 +320,8 @@ pub fn run_sets(args: &Args) -> Result<()> {
                 "ours: + texture memory",
                 ArSettings::ours(),
                 SetRun {
-                    shadows: false,
                     memory: true,
+                    ..SetRun::default()
                 },
             )]);
         for (method, settings, run) in runs {
