@@ -160,7 +160,13 @@ fn with_shadows(method: &str, shadows: bool) -> String {
 /// The bar chart of revealed PSNR per fill (categories), one group per set and shadows off
 /// or on (`fills.svg`).
 fn fills_chart(rows: &[MethodRow]) -> BarChart {
-    let categories: Vec<&str> = fills().iter().map(|(m, _)| short(m)).collect();
+    // The fills only: the rows that change ours' look alone fill as ours does.
+    let ours = ArSettings::ours();
+    let fills: Vec<(&str, ArSettings)> = fills()
+        .into_iter()
+        .filter(|(_, s)| s.look == ours.look || s.fill != ours.fill)
+        .collect();
+    let categories: Vec<&str> = fills.iter().map(|(m, _)| short(m)).collect();
     let mut groups: Vec<BarGroup> = Vec::new();
     let mut sets: Vec<&str> = Vec::new();
     for r in rows {
@@ -172,7 +178,7 @@ fn fills_chart(rows: &[MethodRow]) -> BarChart {
         for shadows in [false, true] {
             groups.push(BarGroup {
                 name: format!("{set}, shadows {}", if shadows { "on" } else { "off" }),
-                values: fills()
+                values: fills
                     .iter()
                     .map(|(m, _)| {
                         let name = with_shadows(m, shadows);
