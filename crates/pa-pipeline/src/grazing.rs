@@ -9,8 +9,9 @@
 //! the silhouette were 1-6 levels darker than the truth, more in blue and green (the sky's
 //! colour), while on our Lambertian generated scene they were not.
 //!
-//! **Model.** At a visible key-prop vertex with albedo `a`, irradiance `E` (the fitted light,
-//! with the sun where there is one) and facing cosine `c`, the frame shows `a E + S g(c)` with
+//! **Model.** At a visible key-prop vertex with albedo `a`, irradiance `E` (the fitted sun and
+//! ambient with the vertex's own shadow; the pipeline measures nothing without the sun, since
+//! against the first-order light alone our matte generated scene's rim gained up to 0.2) and facing cosine `c`, the frame shows `a E + S g(c)` with
 //! `g(c) = (1 - c)^5` and `S = kappa A`, `A` the mean irradiance (the light's constant term).
 //! Per vertex, `q = frame / (a E)` (channel mean) and `x = A g / (a E)`; without reflection `q`
 //! does not depend on `c`.

@@ -89,16 +89,36 @@ fn a_matte_prop_gets_no_grazing_reflection() {
         ..SceneSpec::default()
     };
     let scene = Scene::new(spec, &mut renderer).expect("scene");
-    let mut on = pipeline_for(&scene, &mut renderer, ArSettings::ours()).expect("pipeline");
-    let mut off = pipeline_for(&scene, &mut renderer, without_grazing()).expect("pipeline");
-    for path in [RenderPath::Cpu, RenderPath::Gpu] {
-        on.set_render_path(path);
-        off.set_render_path(path);
-        for i in [6u32, 14, 22, 29] {
-            let f = scene.frame(&mut renderer, i).expect("frame");
-            let a = process_at_true_pose(&mut on, &mut renderer, &f).expect("process");
-            let b = process_at_true_pose(&mut off, &mut renderer, &f).expect("process");
-            assert!(a.rgba8 == b.rgba8, "{} path, frame {i}", path.name());
+    // Ours, and the first-order light (no sun: nothing is measured).
+    let first_order = |grazing: bool| ArSettings {
+        look: LiveLook {
+            sun: false,
+            grazing,
+            ..LiveLook::RELIT_FEATHERED
+        },
+        ..ArSettings::ours()
+    };
+    let pairs = [
+        (ArSettings::ours(), without_grazing()),
+        (first_order(true), first_order(false)),
+    ];
+    for (with, without) in pairs {
+        let mut on = pipeline_for(&scene, &mut renderer, with).expect("pipeline");
+        let mut off = pipeline_for(&scene, &mut renderer, without).expect("pipeline");
+        for path in [RenderPath::Cpu, RenderPath::Gpu] {
+            on.set_render_path(path);
+            off.set_render_path(path);
+            for i in [6u32, 14, 22, 29] {
+                let f = scene.frame(&mut renderer, i).expect("frame");
+                let a = process_at_true_pose(&mut on, &mut renderer, &f).expect("process");
+                let b = process_at_true_pose(&mut off, &mut renderer, &f).expect("process");
+                let sun = with.look.sun;
+                assert!(
+                    a.rgba8 == b.rgba8,
+                    "{} path, frame {i}, sun {sun}",
+                    path.name()
+                );
+            }
         }
     }
 }

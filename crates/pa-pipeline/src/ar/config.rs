@@ -120,9 +120,10 @@ pub struct LiveLook {
     /// instead of the first-order light alone: a part that turns away from the sun, or into
     /// the shadow of another part, darkens to the ambient.
     pub sun: bool,
-    /// With `relight`: add the light a glossy prop reflects where the in-between turns a
-    /// surface edge-on to the camera, and take the key view's out ([`crate::grazing`],
-    /// `pa_raster::look`); measured on the key frame, zero for a matte prop.
+    /// With `relight` and the sun: add the light a glossy prop reflects where the in-between
+    /// turns a surface edge-on to the camera, and take the key view's out
+    /// ([`crate::grazing`], `pa_raster::look`); measured on the key frame against the sun's
+    /// light, zero for a matte prop (and without the sun, which the measure needs).
     pub grazing: bool,
 }
 
