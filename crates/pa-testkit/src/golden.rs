@@ -12,7 +12,8 @@
 //! input frames are rendered on the same adapter. So a hardware adapter may have its own
 //! goldens, `<golden_dir>/<vendor>/<name>.png` ([`Goldens::for_adapter`]), checked with the same
 //! tolerance; where none exists the shared golden applies. On a hardware adapter,
-//! `UPDATE_GOLDEN=1` writes the vendor's golden only where the shared one does not hold.
+//! `UPDATE_GOLDEN=1` writes the vendor's golden only where the shared one does not hold (and
+//! removes it where the shared one now holds).
 
 use std::path::{Path, PathBuf};
 
@@ -173,9 +174,12 @@ pub fn assert_golden_in(
         let target = match &variant {
             Some(v) => match read_golden(&shared, width, height) {
                 Ok(g) if holds(&g).0 => {
+                    // A variant left from before would still be read: it goes.
+                    let removed = std::fs::remove_file(v).is_ok();
                     eprintln!(
-                        "golden {name}: the shared golden holds on this adapter; no {} written",
-                        v.display()
+                        "golden {name}: the shared golden holds on this adapter; no {} {}",
+                        v.display(),
+                        if removed { "(removed)" } else { "written" }
                     );
                     return;
                 }
