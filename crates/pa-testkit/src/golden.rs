@@ -41,12 +41,6 @@ pub struct Goldens {
 }
 
 impl Goldens {
-    /// The shared goldens only (images drawn without a GPU adapter, or by one that must match
-    /// them as they are).
-    pub fn shared(dir: PathBuf) -> Self {
-        Self { dir, variant: None }
-    }
-
     /// The goldens for an adapter described as `pa_render::Renderer::adapter_info` does (its
     /// name first): a hardware adapter's variant is the first word of its name, lower-cased
     /// ("NVIDIA H200 (Vulkan, ...)" -> `nvidia`).
@@ -125,25 +119,6 @@ pub fn save_png(path: &Path, width: u32, height: u32, rgba8: &[u8]) {
         std::fs::create_dir_all(dir).expect("create directory for png");
     }
     image::save_buffer(path, rgba8, width, height, image::ColorType::Rgba8).expect("write png");
-}
-
-/// Compares an RGBA8 image with `golden_dir/<name>.png` (see the module docs).
-pub fn assert_golden(
-    golden_dir: &Path,
-    name: &str,
-    width: u32,
-    height: u32,
-    rgba8: &[u8],
-    tolerance: Tolerance,
-) {
-    assert_golden_in(
-        &Goldens::shared(golden_dir.to_path_buf()),
-        name,
-        width,
-        height,
-        rgba8,
-        tolerance,
-    );
 }
 
 /// Compares an RGBA8 image with its golden in `goldens`: the variant's where one exists, else
