@@ -29,6 +29,7 @@
 
 use glam::{Mat4, Vec3};
 use pa_model::Model;
+use pa_raster::look::schlick;
 
 use crate::shading::{visible_vertices, KeyView};
 
@@ -47,13 +48,6 @@ pub const MAX_KAPPA: f32 = 0.5;
 const MAX_VERTICES: usize = 6000;
 /// Weight of the newest frame in [`GrazingTrack`].
 const TRACK_WEIGHT: f32 = 0.5;
-
-/// Schlick's factor of a facing cosine.
-fn schlick(cos: f32) -> f32 {
-    let t = 1.0 - cos.clamp(0.0, 1.0);
-    let t2 = t * t;
-    t2 * t2 * t
-}
 
 /// One vertex: `(g, q, x)` (module docs).
 #[derive(Debug, Clone, Copy)]

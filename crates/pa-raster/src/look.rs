@@ -38,15 +38,20 @@
 use glam::Vec3;
 
 /// Schlick's grazing factor `(1 - cos)^5` at a surface point `p` with normal `n`, both in the
-/// camera frame (`cos` the facing cosine, clamped to [0, 1]; 1 where either is zero).
+/// camera frame (`cos` the facing cosine; 1 where either is zero).
 #[inline]
 pub fn grazing(p: Vec3, n: Vec3) -> f32 {
     let len2 = n.dot(n) * p.dot(p);
-    let cos = if len2 > 0.0 {
+    schlick(if len2 > 0.0 {
         -n.dot(p) / len2.sqrt()
     } else {
         0.0
-    };
+    })
+}
+
+/// Schlick's factor `(1 - cos)^5` of a facing cosine, clamped to [0, 1].
+#[inline]
+pub fn schlick(cos: f32) -> f32 {
     let t = 1.0 - cos.clamp(0.0, 1.0);
     let t2 = t * t;
     t2 * t2 * t
