@@ -42,6 +42,20 @@ pub struct CpuTwin {
 }
 
 impl CpuTwin {
+    /// The key pose's primitives in the world (marker) frame, as
+    /// [`crate::shading::irradiance_samples_from`] takes them: `(mesh, primitive, positions,
+    /// normals)`.
+    pub fn key_parts(&self) -> impl Iterator<Item = (usize, usize, &[Vec3], &[Vec3])> + Clone {
+        self.primitives.iter().zip(&self.key).map(|(tp, k)| {
+            (
+                tp.mesh,
+                tp.primitive,
+                k.positions_world.as_slice(),
+                k.normals_world.as_slice(),
+            )
+        })
+    }
+
     /// Builds the textures' mip chains and lists the drawable primitives (those with
     /// triangles), in [`crate::twin::GpuTwin::upload`]'s order.
     pub fn new(model: &Model) -> Result<Self, RasterError> {

@@ -196,18 +196,26 @@ pub fn irradiance_samples(
 ) -> Vec<IrradianceSample> {
     irradiance_samples_from(
         model,
-        posed.iter().map(|p| {
-            (
-                p.mesh,
-                p.primitive,
-                p.positions.as_slice(),
-                p.normals.as_slice(),
-            )
-        }),
+        posed_parts(posed),
         world_from_model,
         view,
         max_samples,
     )
+}
+
+/// Posed primitives as [`irradiance_samples_from`] takes them: `(mesh, primitive, positions,
+/// normals)`.
+pub fn posed_parts(
+    posed: &[PosedPrimitive],
+) -> impl Iterator<Item = (usize, usize, &[Vec3], &[Vec3])> + Clone {
+    posed.iter().map(|p| {
+        (
+            p.mesh,
+            p.primitive,
+            p.positions.as_slice(),
+            p.normals.as_slice(),
+        )
+    })
 }
 
 /// [`irradiance_samples`] over any posed primitives: `(mesh, primitive, positions, normals)`

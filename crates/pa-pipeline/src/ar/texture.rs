@@ -16,7 +16,8 @@ use crate::composite::bounding_box;
 use crate::cpu_twin::CpuTwin;
 use crate::grazing::{grazing_rgb, GrazingSamples, GrazingTrack};
 use crate::shading::{
-    irradiance_samples, irradiance_samples_from, Irradiance, IrradianceSample, KeyDepth, KeyView,
+    irradiance_samples, irradiance_samples_from, posed_parts, Irradiance, IrradianceSample,
+    KeyDepth, KeyView,
 };
 use crate::twin::TwinFrame;
 
@@ -322,17 +323,10 @@ impl ArPipeline {
                         None
                     };
                     let grazing = if visibility && look.relight && look.grazing {
-                        let posed = props.iter().zip(&posed_keys).map(|(p, key)| {
-                            let prims = key.iter().map(|k| {
-                                (
-                                    k.mesh,
-                                    k.primitive,
-                                    k.positions.as_slice(),
-                                    k.normals.as_slice(),
-                                )
-                            });
-                            (&p.model, prims)
-                        });
+                        let posed = props
+                            .iter()
+                            .zip(&posed_keys)
+                            .map(|(p, key)| (&p.model, posed_parts(key)));
                         let track = &mut self.grazing_track;
                         let sun = sun.as_ref();
                         grazing_light(posed, &key_view, &irradiance, sun, &sun_lit, track)
@@ -548,15 +542,7 @@ impl ArPipeline {
                 };
                 let (light, samples) = key_light(twins.iter().zip(props), |(tw, p), n| {
                     // Posed in the marker frame already: the world is the model's.
-                    let posed = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
-                        (
-                            tp.mesh,
-                            tp.primitive,
-                            k.positions_world.as_slice(),
-                            k.normals_world.as_slice(),
-                        )
-                    });
-                    irradiance_samples_from(&p.model, posed, Mat4::IDENTITY, &key_view, n)
+                    irradiance_samples_from(&p.model, tw.key_parts(), Mat4::IDENTITY, &key_view, n)
                 });
                 let sun = if settings.look.relight && settings.look.sun {
                     let prims: Vec<SunPrimitive<'_>> = twins
@@ -579,17 +565,10 @@ impl ArPipeline {
                     None
                 };
                 let grazing = (settings.look.relight && settings.look.grazing).then(|| {
-                    let posed = twins.iter().zip(props).map(|(tw, p)| {
-                        let prims = tw.primitives.iter().zip(&tw.key).map(|(tp, k)| {
-                            (
-                                tp.mesh,
-                                tp.primitive,
-                                k.positions_world.as_slice(),
-                                k.normals_world.as_slice(),
-                            )
-                        });
-                        (&p.model, prims)
-                    });
+                    let posed = twins
+                        .iter()
+                        .zip(props)
+                        .map(|(tw, p)| (&p.model, tw.key_parts()));
                     grazing_light(
                         posed,
                         &key_view,
