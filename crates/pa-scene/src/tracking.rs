@@ -20,6 +20,11 @@ pub struct SensorNoise {
     pub sigma: f32,
     /// Passes of a 3x3 binomial blur (0: none; one pass is a Gaussian of sigma ~0.7 px).
     pub blur_passes: u32,
+    /// Blur in linear light (decoded from sRGB, blurred, encoded again), as a lens blurs
+    /// before the camera encodes; `false` blurs the encoded values (the eval's first noisy
+    /// camera, kept for continuity of its figures: it keeps the encoded grey's halfway
+    /// point where the sharp frame had it, which a lens does not).
+    pub linear_light: bool,
 }
 
 impl SensorNoise {
@@ -28,6 +33,13 @@ impl SensorNoise {
     pub const HANDHELD: SensorNoise = SensorNoise {
         sigma: 15.0,
         blur_passes: 2,
+        linear_light: false,
+    };
+
+    /// [`SensorNoise::HANDHELD`] with its blur in linear light, as a lens blurs.
+    pub const HANDHELD_LENS: SensorNoise = SensorNoise {
+        linear_light: true,
+        ..SensorNoise::HANDHELD
     };
 
     /// Applies the degradation to an RGBA8 frame (alpha untouched), deterministically from
@@ -37,24 +49,33 @@ impl SensorNoise {
         if rgba8.len() != w * h * 4 || w == 0 || h == 0 {
             return;
         }
-        for _ in 0..self.blur_passes {
-            for horizontal in [true, false] {
-                let src = rgba8.to_vec();
-                for y in 0..h {
-                    for x in 0..w {
-                        let (a, b) = if horizontal {
-                            ((y * w + x.saturating_sub(1)), (y * w + (x + 1).min(w - 1)))
-                        } else {
-                            ((y.saturating_sub(1) * w + x), ((y + 1).min(h - 1) * w + x))
-                        };
-                        let i = y * w + x;
-                        for c in 0..3 {
-                            let v = u32::from(src[a * 4 + c])
-                                + 2 * u32::from(src[i * 4 + c])
-                                + u32::from(src[b * 4 + c]);
-                            rgba8[i * 4 + c] = ((v + 2) / 4) as u8;
-                        }
-                    }
+        if self.linear_light && self.blur_passes > 0 {
+            let lut = crate::variant::srgb_lut();
+            let mut lin: Vec<f32> = rgba8.iter().map(|&v| lut[usize::from(v)]).collect();
+            for _ in 0..self.blur_passes {
+                for horizontal in [true, false] {
+                    let src = lin.clone();
+                    blur_pass(w, h, horizontal, |i, a, b, c| {
+                        lin[i * 4 + c] =
+                            0.25 * (src[a * 4 + c] + 2.0 * src[i * 4 + c] + src[b * 4 + c]);
+                    });
+                }
+            }
+            for (i, px) in rgba8.chunks_exact_mut(4).enumerate() {
+                for c in 0..3 {
+                    px[c] = crate::variant::srgb_encode(lin[i * 4 + c]);
+                }
+            }
+        } else {
+            for _ in 0..self.blur_passes {
+                for horizontal in [true, false] {
+                    let src = rgba8.to_vec();
+                    blur_pass(w, h, horizontal, |i, a, b, c| {
+                        let v = u32::from(src[a * 4 + c])
+                            + 2 * u32::from(src[i * 4 + c])
+                            + u32::from(src[b * 4 + c]);
+                        rgba8[i * 4 + c] = ((v + 2) / 4) as u8;
+                    });
                 }
             }
         }
@@ -66,6 +87,29 @@ impl SensorNoise {
                 let u2 = rng.f32();
                 let g = (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos();
                 *v = (f32::from(*v) + self.sigma * g).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+}
+
+/// One pass of a [1 2 1] / 4 blur along rows (`horizontal`) or columns over a `w x h` frame
+/// (the border repeated): `each(i, a, b, channel)` for every pixel `i`, its neighbours `a`
+/// and `b` along the pass, and each colour channel.
+fn blur_pass(
+    w: usize,
+    h: usize,
+    horizontal: bool,
+    mut each: impl FnMut(usize, usize, usize, usize),
+) {
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = if horizontal {
+                ((y * w + x.saturating_sub(1)), (y * w + (x + 1).min(w - 1)))
+            } else {
+                ((y.saturating_sub(1) * w + x), ((y + 1).min(h - 1) * w + x))
+            };
+            for c in 0..3 {
+                each(y * w + x, a, b, c);
             }
         }
     }
@@ -166,6 +210,7 @@ mod tests {
         let n = SensorNoise {
             sigma: 6.0,
             blur_passes: 1,
+            linear_light: false,
         };
         n.apply(&mut a, w, h, 3);
         n.apply(&mut b, w, h, 3);
@@ -182,23 +227,26 @@ mod tests {
         let sd = (dev.iter().map(|d| d * d).sum::<f64>() / dev.len() as f64).sqrt();
         assert!((sd - 6.0).abs() < 0.3, "sd {sd}");
         assert!(a.chunks_exact(4).all(|p| p[3] == 128));
-        // The blur alone keeps a flat image flat and softens a step.
-        let mut step: Vec<u8> = (0..w * h)
-            .flat_map(|i| {
-                let v = if i % w < w / 2 { 0 } else { 200 };
-                [v, v, v, 255]
-            })
-            .collect();
-        SensorNoise {
-            sigma: 0.0,
-            blur_passes: 1,
+        // The blur alone keeps a flat image flat and softens a step; in linear light the
+        // step is brighter beside the edge: 0 and 200 decode to 0 and 0.578, and a quarter
+        // and three quarters of that encode to 106 and 176.
+        for (linear_light, expected) in [(false, [0, 50, 150, 200]), (true, [0, 106, 176, 200])] {
+            let mut step: Vec<u8> = (0..w * h)
+                .flat_map(|i| {
+                    let v = if i % w < w / 2 { 0 } else { 200 };
+                    [v, v, v, 255]
+                })
+                .collect();
+            SensorNoise {
+                sigma: 0.0,
+                blur_passes: 1,
+                linear_light,
+            }
+            .apply(&mut step, w, h, 0);
+            let row: Vec<u8> = (0..w as usize).map(|x| step[x * 4]).collect();
+            assert_eq!(&row[w as usize / 2 - 2..w as usize / 2 + 2], &expected);
+            assert!(step.chunks_exact(4).all(|p| p[3] == 255));
         }
-        .apply(&mut step, w, h, 0);
-        let row: Vec<u8> = (0..w as usize).map(|x| step[x * 4]).collect();
-        assert_eq!(
-            &row[w as usize / 2 - 2..w as usize / 2 + 2],
-            &[0, 50, 150, 200]
-        );
     }
 
     #[test]

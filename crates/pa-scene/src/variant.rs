@@ -214,7 +214,7 @@ impl PlaneLighting {
 const PLANE_TOLERANCE_M: f32 = 0.0015;
 
 /// sRGB decoding of the 256 codes.
-fn srgb_lut() -> [f32; 256] {
+pub(crate) fn srgb_lut() -> [f32; 256] {
     std::array::from_fn(|v| {
         let c = v as f32 / 255.0;
         if c <= 0.04045 {
@@ -225,7 +225,7 @@ fn srgb_lut() -> [f32; 256] {
     })
 }
 
-fn srgb_encode(l: f32) -> u8 {
+pub(crate) fn srgb_encode(l: f32) -> u8 {
     let l = l.clamp(0.0, 1.0);
     let c = if l <= 0.003_130_8 {
         12.92 * l

@@ -62,6 +62,7 @@
 
 pub mod board;
 pub mod detect;
+mod edges;
 mod family;
 pub mod filter;
 pub mod image_target;
@@ -73,6 +74,7 @@ pub mod tracker;
 
 pub use board::Board;
 pub use detect::{Detection, Detector, DetectorConfig, GrayImage, TagFamily};
+pub use edges::refine_tag_corners;
 pub use filter::{OneEuro, PoseFilter, PoseFilterConfig};
 pub use image_target::{assess_picture, ImageObservation, ImageTarget, PictureQuality, Verdict};
 pub use marker::{family_layout, marker_cells, marker_image, FamilyLayout};
@@ -80,8 +82,8 @@ pub use pose::{
     estimate_tag_pose, pose_noise, tag_object_points, Pose, PoseCandidate, PoseEstimate, PoseNoise,
 };
 pub use tracker::{
-    TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig, FAST_MIN_TAG_PX,
-    FAST_RECHECK_DETECTIONS,
+    CornerRefinement, TrackEvent, TrackOutput, TrackState, TrackTarget, Tracker, TrackerConfig,
+    FAST_MIN_TAG_PX, FAST_RECHECK_DETECTIONS,
 };
 
 /// Errors of the tracker. A frame without tags is not an error.

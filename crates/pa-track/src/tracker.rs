@@ -158,6 +158,28 @@ pub struct TrackerConfig {
     /// accurate on sharp frames, but on noisy frames the video filter fed by it is no longer
     /// better than a still's own pose (README, "The decimated search first").
     pub fast_first: bool,
+    /// Find each detected tag's edges again in linear light before the pose (module
+    /// `edges`): the quad search's edges lie inside the black border on gamma-encoded frames,
+    /// so the board looked a little too far away. The frames' encoding says how to get back
+    /// to linear light; [`CornerRefinement::Off`] keeps the detector's corners (the AprilTag
+    /// C library's).
+    pub refine_corners: CornerRefinement,
+}
+
+/// How [`TrackerConfig::refine_corners`] reads the frame.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum CornerRefinement {
+    /// The detector's corners as found.
+    Off,
+    /// Frames encoded with the sRGB curve, as cameras' and renderers' 8-bit output is.
+    #[default]
+    Srgb,
+    /// Frames whose values are proportional to the light (a raw or linear camera profile,
+    /// and synthetic frames blurred in their stored values).
+    Linear,
 }
 
 /// Side (pixels) under which a board tag may be missed by the decimated quad search (it
@@ -198,6 +220,7 @@ impl Default for TrackerConfig {
             max_rms_px: 3.0,
             filter: PoseFilterConfig::default(),
             fast_first: false,
+            refine_corners: CornerRefinement::Srgb,
         }
     }
 }
@@ -352,8 +375,19 @@ impl Tracker {
 
     /// This frame's tag detections: around the last position first (when tracking and
     /// [`TrackerConfig::use_roi`]), the whole frame when that finds none of the board's tags.
-    /// The flag says whether the region of interest sufficed.
+    /// The flag says whether the region of interest sufficed. Corners refined as
+    /// [`TrackerConfig::refine_corners`] says.
     fn detect_tags(&mut self, frame: &GrayImage) -> Result<(Vec<Detection>, bool), TrackError> {
+        let (mut found, used_roi) = self.detect_tags_as_found(frame)?;
+        crate::edges::refine_tag_corners(frame, self.config.refine_corners, &mut found);
+        Ok((found, used_roi))
+    }
+
+    /// [`Tracker::detect_tags`] before the corners' refinement.
+    fn detect_tags_as_found(
+        &mut self,
+        frame: &GrayImage,
+    ) -> Result<(Vec<Detection>, bool), TrackError> {
         if self.config.use_roi && self.state != TrackState::Searching {
             if let Some([x0, y0, x1, y1]) = self.roi {
                 let w = frame.width as f64;

@@ -13,8 +13,8 @@ use pa_camera::CameraModel;
 use pa_track::board::BoardTag;
 use pa_track::image_target::synth::{natural_picture, render_view, view_pose, Pinhole};
 use pa_track::{
-    family_layout, marker_cells, Board, DetectorConfig, GrayImage, ImageTarget, Pose, TagFamily,
-    TrackTarget, Tracker, TrackerConfig,
+    family_layout, marker_cells, Board, CornerRefinement, DetectorConfig, GrayImage, ImageTarget,
+    Pose, TagFamily, TrackTarget, Tracker, TrackerConfig,
 };
 
 const F: f64 = 1000.0;
@@ -111,7 +111,12 @@ fn tracker(target: TrackTarget) -> Tracker {
         camera(),
         target,
         DetectorConfig::default(),
-        TrackerConfig::per_still(),
+        TrackerConfig {
+            // `render_view` blurs the picture's stored values: a camera whose values are
+            // proportional to the light.
+            refine_corners: CornerRefinement::Linear,
+            ..TrackerConfig::per_still()
+        },
     )
     .expect("tracker")
 }

@@ -11,8 +11,8 @@ use common::*;
 use glam::{DVec2, DVec3};
 use pa_track::board::{Board, BoardTag};
 use pa_track::{
-    Detection, Detector, DetectorConfig, GrayImage, Pose, TagFamily, TrackTarget, Tracker,
-    TrackerConfig, FAST_MIN_TAG_PX, FAST_RECHECK_DETECTIONS,
+    CornerRefinement, Detection, Detector, DetectorConfig, GrayImage, Pose, TagFamily, TrackTarget,
+    Tracker, TrackerConfig, FAST_MIN_TAG_PX, FAST_RECHECK_DETECTIONS,
 };
 
 /// Id of the small tag.
@@ -66,6 +66,9 @@ fn tracker(board: &Board, fast_first: bool) -> Tracker {
         DetectorConfig::default(),
         TrackerConfig {
             fast_first,
+            // These tests tell which search ran by comparing the tracker's detections with a
+            // detector's, corner for corner: the detector's corners as found.
+            refine_corners: CornerRefinement::Off,
             ..TrackerConfig::per_still()
         },
     )

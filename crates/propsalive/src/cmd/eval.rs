@@ -319,7 +319,11 @@ pub fn run(args: Args) -> Result<()> {
     // every frame of the clip (a video: consecutive frames), clean and with sensor noise.
     // At the eval's size and at the scene's default 960x540 (where per-still poses are
     // ten times better); on wood only (the board's detections do not see the table).
-    let noises = [None, Some(SensorNoise::HANDHELD)];
+    let noises = [
+        None,
+        Some(SensorNoise::HANDHELD),
+        Some(SensorNoise::HANDHELD_LENS),
+    ];
     let default_size = (SceneSpec::default().width, SceneSpec::default().height);
     let mut sizes = vec![(w, h)];
     if default_size != (w, h) {
@@ -349,8 +353,14 @@ pub fn run(args: Args) -> Result<()> {
             let frames_name = match noise {
                 None => "clean frames".to_string(),
                 Some(n) => format!(
-                    "noisy frames (noise {} levels, blur {}x)",
-                    n.sigma, n.blur_passes
+                    "noisy frames (noise {} levels, blur {}x{})",
+                    n.sigma,
+                    n.blur_passes,
+                    if n.linear_light {
+                        " in linear light"
+                    } else {
+                        ""
+                    }
                 ),
             };
             for (mode, v) in [

@@ -102,6 +102,12 @@ pub struct Args {
     /// How each frame's tags are found.
     #[arg(long, value_enum, default_value_t = Tracking::Full)]
     pub tracking: Tracking,
+    /// How each tag's corners are refined before the pose: its edges found again in linear
+    /// light, decoding the frame as sRGB (cameras' and renderers' 8-bit output) or as linear
+    /// (a raw or linear camera profile); `off` keeps the detector's corners (the AprilTag C
+    /// library's).
+    #[arg(long, value_enum, default_value_t = Corners::Srgb)]
+    pub corners: Corners,
     /// Write the JSON lines here instead of stdout.
     #[arg(long)]
     pub out_log: Option<PathBuf>,
@@ -125,6 +131,25 @@ pub enum Tracking {
     /// the AprilTag C library at `quad_decimate = 2`): about 9 ms a noisy 1280x720 still,
     /// corners 0.33 px off the truth; tags under about 27 px a side are missed.
     Fast,
+}
+
+/// `--corners` of `track`: [`pa_track::CornerRefinement`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Corners {
+    #[default]
+    Srgb,
+    Linear,
+    Off,
+}
+
+impl From<Corners> for pa_track::CornerRefinement {
+    fn from(c: Corners) -> Self {
+        match c {
+            Corners::Srgb => Self::Srgb,
+            Corners::Linear => Self::Linear,
+            Corners::Off => Self::Off,
+        }
+    }
 }
 
 impl Tracking {
@@ -422,7 +447,10 @@ pub fn resolve(args: &Args) -> Result<Config> {
     if args.thorough {
         detector = detector.thorough();
     }
-    let mut tracker = TrackerConfig::default();
+    let mut tracker = TrackerConfig {
+        refine_corners: args.corners.into(),
+        ..TrackerConfig::default()
+    };
     if single_image {
         tracker.frames_to_track = 1;
     }
