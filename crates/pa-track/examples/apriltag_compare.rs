@@ -1,13 +1,14 @@
 //! Tracking per still against the AprilTag C library on the same frames (not part of CI; see
 //! `scripts/baselines/README.md` for the whole run).
 //!
-//! `render DIR [--frames N] [--width W --height H] [--noise]`: renders N frames of the built-in
-//! scene (the prop on the eight-tag board, wood table, handheld camera; pa-render) as
+//! `render DIR [--frames N] [--width W --height H] [--noise | --lens]`: renders N frames of the
+//! built-in scene (the prop on the eight-tag board, wood table, handheld camera; pa-render) as
 //! 8-bit PGM (`DIR/frame_NNN.pgm`, Rec. 601 luma as pa-track's benches), with the truth:
 //! `truth.txt` (`frame id` and the four true corners in pa-track's convention, projected
 //! from the board and the true pose), `poses.txt` (`frame` and the true `camera_from_marker`,
 //! 16 column-major values), `camera.txt` (`fx fy cx cy width height`) and `board.json`.
-//! `--noise` degrades each frame with pa-scene's handheld sensor noise (blur and 15 levels).
+//! `--noise` degrades each frame with pa-scene's handheld sensor noise (blur and 15 levels);
+//! `--lens` does the same with the blur in linear light, as a lens blurs.
 //!
 //! `run DIR [--threads T] [--reps R] [--only TEXT] [--c NAME=FILE]...`: times our detector (default settings,
 //! and the other settings listed below) on those frames on a rayon pool of T threads (default
@@ -42,7 +43,7 @@ fn arg_value(args: &[String], name: &str) -> Option<String> {
 fn main() -> Res<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (Some(cmd), Some(dir)) = (args.first(), args.get(1)) else {
-        eprintln!("usage: apriltag_compare render DIR [--frames N] [--noise] | run DIR [--threads T] [--reps R] [--c NAME=FILE]...");
+        eprintln!("usage: apriltag_compare render DIR [--frames N] [--noise | --lens] | run DIR [--threads T] [--reps R] [--c NAME=FILE]...");
         std::process::exit(2);
     };
     let dir = PathBuf::from(dir);
@@ -129,7 +130,13 @@ fn render(dir: &Path, args: &[String]) -> Res<()> {
     let frames: u32 = arg_value(args, "--frames").map_or(Ok(30), |v| v.parse())?;
     let width: u32 = arg_value(args, "--width").map_or(Ok(1280), |v| v.parse())?;
     let height: u32 = arg_value(args, "--height").map_or(Ok(720), |v| v.parse())?;
-    let noise = args.iter().any(|a| a == "--noise");
+    let noise = if args.iter().any(|a| a == "--lens") {
+        Some(SensorNoise::HANDHELD_LENS)
+    } else if args.iter().any(|a| a == "--noise") {
+        Some(SensorNoise::HANDHELD)
+    } else {
+        None
+    };
     std::fs::create_dir_all(dir)?;
     let mut renderer = Renderer::new()?;
     let spec = SceneSpec {
@@ -159,8 +166,8 @@ fn render(dir: &Path, args: &[String]) -> Res<()> {
         let i = (f * n) / frames.max(1);
         let frame = scene.frame(&mut renderer, i)?;
         let mut rgba = frame.input.rgba8.clone();
-        if noise {
-            SensorNoise::HANDHELD.apply(&mut rgba, width, height, 1000 + u64::from(i));
+        if let Some(noise) = noise {
+            noise.apply(&mut rgba, width, height, 1000 + u64::from(i));
         }
         let data = rgba
             .chunks_exact(4)

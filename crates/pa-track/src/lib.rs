@@ -8,6 +8,10 @@
 //! hysteresis, pose filtering weighted by the measured noise (a constant-velocity Kalman
 //! filter, [`PoseFilter`]) and region-of-interest search. [`Board::estimate_pose`] rejects tags
 //! whose corners disagree with the rest (a tag partly hidden by the prop) before its final fit.
+//! Before the pose, the [`Tracker`] finds each tag's edges again in linear light
+//! ([`refine_tag_corners`], [`TrackerConfig::refine_corners`]): the quad search, like the C
+//! library, puts an edge where the encoded grey is halfway, which on a gamma-encoded frame lies
+//! inside the black border and makes the board look too far away.
 //!
 //! # Picture targets
 //!
