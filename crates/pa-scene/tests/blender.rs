@@ -72,6 +72,26 @@ fn the_tracker_agrees_with_blenders_cameras_and_the_fill_is_measured() {
     }
 }
 
+/// Regression (stop 36): the quad search put every tag's edges inside its black border
+/// (where the encoded grey is halfway, a fifth of the way up in linear light), so the board
+/// looked too small and too far: 0.72-1.29 mm along the line of sight on these frames, at
+/// 600 mm. The tracker now finds the edges again in linear light (`pa_track::edges`):
+/// measured 0.04-0.15 mm.
+#[test]
+fn regression_tag_corners_inside_the_black_border_put_the_board_too_far() {
+    let set = set();
+    let mut renderer = Renderer::new().expect("renderer");
+    let ms = run_set(&mut renderer, &set, ArSettings::ours(), |_, _, _, _| {
+        Ok::<(), SceneError>(())
+    })
+    .expect("runs");
+    for m in &ms {
+        let trans = m.trans_err_mm.expect("translation error");
+        eprintln!("frame {}: translation error {trans:.3} mm", m.frame);
+        assert!(trans < 0.4, "frame {}: {trans} mm", m.frame);
+    }
+}
+
 #[test]
 fn a_damaged_set_is_a_typed_error_naming_the_file() {
     let mut set = set();
