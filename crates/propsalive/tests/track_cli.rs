@@ -333,6 +333,50 @@ fn track_single_image_gives_pose_log_and_drawing() {
 }
 
 #[test]
+fn track_corners_flag_selects_how_corners_are_refined() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let img = dir.path().join("shot.png");
+    frame(true, 3).save(&img).expect("save");
+    let calib = dir.path().join("cam.yaml");
+    write_calib(&calib, 640, 480, 500.0);
+    for how in ["srgb", "linear", "off"] {
+        let log = dir.path().join(format!("{how}.jsonl"));
+        let o = propsalive(&[
+            "track",
+            s(&img),
+            "--calib",
+            s(&calib),
+            "--tag-size-m",
+            "0.08",
+            "--id",
+            "3",
+            "--corners",
+            how,
+            "--out-log",
+            s(&log),
+        ]);
+        assert!(o.status.success(), "{how}: {}", stderr(&o));
+        let lines = json_lines(&std::fs::read_to_string(&log).expect("log"));
+        let c0 = &lines[0]["detections"][0]["corners_px"][0];
+        // A sharp tag on pixel boundaries: every reading puts the corner there.
+        assert!((c0[0].as_f64().unwrap() - 239.5).abs() < 0.1, "{how}: {c0}");
+        assert!((c0[1].as_f64().unwrap() - 159.5).abs() < 0.1, "{how}: {c0}");
+    }
+    let o = propsalive(&[
+        "track",
+        s(&img),
+        "--calib",
+        s(&calib),
+        "--tag-size-m",
+        "0.08",
+        "--corners",
+        "gamma",
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("srgb, linear, off"), "{}", stderr(&o));
+}
+
+#[test]
 fn track_frame_without_tag_is_searching_not_an_error() {
     let dir = tempfile::tempdir().expect("tempdir");
     let img = dir.path().join("empty.png");
