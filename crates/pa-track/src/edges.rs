@@ -14,12 +14,14 @@
 //! (the middle 70 %, away from the corners), the centroid of the profile's derivative
 //! across the edge, which for any symmetric blur lies on the edge itself; a line through
 //! those points (first those within [`OUTLIER_PX`] of the median offset, then those within
-//! it of that line: a prop over part of an edge); corners at the lines' intersections. The profile is read within half a bit cell
-//! of the edge, so that the next edge inside the tag does not pull it, and twice, the second
-//! time centred on the first's lines.
+//! it of that line: a prop over part of an edge); corners at the lines' intersections. The
+//! profile is read within half a bit cell of the edge, so that the next edge inside the tag
+//! does not pull it, and twice, the second time centred on the first's lines.
 //!
 //! Coordinates: OpenCV's pixel-centre convention (pixel `(x, y)`'s centre is at `(x, y)`),
 //! as [`Detection::corners_px`].
+
+use std::sync::OnceLock;
 
 use glam::DVec2;
 use rayon::prelude::*;
@@ -54,27 +56,26 @@ const MAX_MOVE_PX: f64 = 4.0;
 /// other families' are similar or wider, which only makes the window more cautious).
 const CELLS_ACROSS: f64 = 8.0;
 
-/// sRGB-encoded 8-bit value -> linear light in [0, 1].
-fn decode_lut() -> [f32; 256] {
-    let mut lut = [0.0f32; 256];
-    for (i, v) in lut.iter_mut().enumerate() {
-        let c = i as f64 / 255.0;
-        *v = if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        } as f32;
-    }
-    lut
+/// sRGB-encoded 8-bit value -> linear light in [0, 1] (built once: every tracked frame
+/// reads it).
+fn decode_lut() -> &'static [f32; 256] {
+    static LUT: OnceLock<[f32; 256]> = OnceLock::new();
+    LUT.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let c = i as f64 / 255.0;
+            (if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }) as f32
+        })
+    })
 }
 
 /// Linear 8-bit value -> [0, 1].
-fn identity_lut() -> [f32; 256] {
-    let mut lut = [0.0f32; 256];
-    for (i, v) in lut.iter_mut().enumerate() {
-        *v = i as f32 / 255.0;
-    }
-    lut
+fn identity_lut() -> &'static [f32; 256] {
+    static LUT: OnceLock<[f32; 256]> = OnceLock::new();
+    LUT.get_or_init(|| std::array::from_fn(|i| i as f32 / 255.0))
 }
 
 /// Refines the corners of every detection in `gray` in place, as `how` says (what
@@ -93,20 +94,16 @@ pub fn refine_tag_corners(gray: &GrayImage, how: CornerRefinement, detections: &
     };
     // One tag per task on the pool (each reads about 10k samples).
     detections.par_iter_mut().for_each(|d| {
-        if let Some(c) = refine_corners(gray, &lut, &d.corners_px) {
+        if let Some(c) = refine_corners(gray, lut, &d.corners_px) {
             d.corners_px = c;
         }
     });
 }
 
-/// The corners of the quad `corners` (in order around it) refined in light as `lut` reads it, or
-/// `None` when an edge has too few usable points, the tag is too small, or an edge would
+/// The corners of the quad `corners` (in order around it) refined in light as `lut` reads
+/// it, or `None` when an edge has too few usable points, the tag is too small, or an edge would
 /// move more than [`MAX_SHIFT_PX`] (a corner more than [`MAX_MOVE_PX`]).
-pub(crate) fn refine_corners(
-    gray: &GrayImage,
-    lut: &[f32; 256],
-    corners: &[DVec2; 4],
-) -> Option<[DVec2; 4]> {
+fn refine_corners(gray: &GrayImage, lut: &[f32; 256], corners: &[DVec2; 4]) -> Option<[DVec2; 4]> {
     let min_side = (0..4)
         .map(|i| (corners[(i + 1) % 4] - corners[i]).length())
         .fold(f64::INFINITY, f64::min);

@@ -114,7 +114,7 @@ fn blurred_edges_are_found_where_they_are_in_linear_light() {
         let img = render(truth, 80, sigma, |_| false);
         // The encoded midpoint lies inside the black border: start from a shrunk quad.
         let start = shrunk(truth, 0.3);
-        let got = refine_corners(&img, &lut, &start).expect("refined");
+        let got = refine_corners(&img, lut, &start).expect("refined");
         let e = max_error(&got, &truth);
         println!(
             "sigma {sigma}: corner error {e:.4} px (start {:.3})",
@@ -148,7 +148,7 @@ fn the_encoded_halfway_grey_lies_inside_the_border_and_the_refinement_undoes_it(
         })
         .expect("crossing");
     assert!(x > 20.375 + 0.1, "encoded crossing at {x}");
-    let got = refine_corners(&img, &decode_lut(), &shrunk(truth, 0.2)).expect("refined");
+    let got = refine_corners(&img, decode_lut(), &shrunk(truth, 0.2)).expect("refined");
     assert!(max_error(&got, &truth) < 0.03, "{got:?}");
 }
 
@@ -159,7 +159,7 @@ fn an_edge_half_covered_by_an_occluder_still_gives_its_corners() {
     let img = render(truth, 80, 0.8, |p| {
         (p - DVec2::new(45.0, 20.0)).length() < 5.0
     });
-    let got = refine_corners(&img, &decode_lut(), &shrunk(truth, 0.3)).expect("refined");
+    let got = refine_corners(&img, decode_lut(), &shrunk(truth, 0.3)).expect("refined");
     let e = max_error(&got, &truth);
     assert!(e < 0.06, "{e}");
 }
@@ -175,17 +175,17 @@ fn a_tag_too_small_or_off_the_frame_keeps_its_corners() {
         DVec2::new(40.0, 40.0),
         DVec2::new(30.0, 40.0),
     ];
-    assert!(refine_corners(&img, &lut, &small).is_none());
+    assert!(refine_corners(&img, lut, &small).is_none());
     // Off the frame: no edge has enough points inside it.
     let off = tilted().map(|p| p + DVec2::new(200.0, 0.0));
-    assert!(refine_corners(&img, &lut, &off).is_none());
+    assert!(refine_corners(&img, lut, &off).is_none());
     // A flat frame: no contrast anywhere.
     let flat = GrayImage::filled(80, 80, 128);
-    assert!(refine_corners(&flat, &lut, &tilted()).is_none());
+    assert!(refine_corners(&flat, lut, &tilted()).is_none());
     // NaN corners.
     let mut nan = tilted();
     nan[2] = DVec2::NAN;
-    assert!(refine_corners(&img, &lut, &nan).is_none());
+    assert!(refine_corners(&img, lut, &nan).is_none());
 }
 
 #[test]
