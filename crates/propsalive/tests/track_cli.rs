@@ -270,6 +270,34 @@ fn json_lines(text: &str) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// `track` on the one-tag shot `img` (`frame(true, 3)`, tag 3 of 0.08 m) seen by `calib`,
+/// with `flag value` added and the log written to `log`: the log's lines (the run must
+/// succeed).
+fn track_one_tag_with(
+    img: &Path,
+    calib: &Path,
+    flag: &str,
+    value: &str,
+    log: &Path,
+) -> Vec<serde_json::Value> {
+    let o = propsalive(&[
+        "track",
+        s(img),
+        "--calib",
+        s(calib),
+        "--tag-size-m",
+        "0.08",
+        "--id",
+        "3",
+        flag,
+        value,
+        "--out-log",
+        s(log),
+    ]);
+    assert!(o.status.success(), "{flag} {value}: {}", stderr(&o));
+    json_lines(&std::fs::read_to_string(log).expect("log"))
+}
+
 #[test]
 fn track_single_image_gives_pose_log_and_drawing() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -341,22 +369,7 @@ fn track_corners_flag_selects_how_corners_are_refined() {
     write_calib(&calib, 640, 480, 500.0);
     for how in ["srgb", "linear", "off"] {
         let log = dir.path().join(format!("{how}.jsonl"));
-        let o = propsalive(&[
-            "track",
-            s(&img),
-            "--calib",
-            s(&calib),
-            "--tag-size-m",
-            "0.08",
-            "--id",
-            "3",
-            "--corners",
-            how,
-            "--out-log",
-            s(&log),
-        ]);
-        assert!(o.status.success(), "{how}: {}", stderr(&o));
-        let lines = json_lines(&std::fs::read_to_string(&log).expect("log"));
+        let lines = track_one_tag_with(&img, &calib, "--corners", how, &log);
         let c0 = &lines[0]["detections"][0]["corners_px"][0];
         // A sharp tag on pixel boundaries: every reading puts the corner there.
         assert!((c0[0].as_f64().unwrap() - 239.5).abs() < 0.1, "{how}: {c0}");
@@ -576,22 +589,7 @@ fn track_fast_tracking_finds_the_same_pose_and_refuses_thorough() {
     write_calib(&calib, 640, 480, 500.0);
     let pose_of = |mode: &str| {
         let log = dir.path().join(format!("{mode}.jsonl"));
-        let o = propsalive(&[
-            "track",
-            s(&img),
-            "--calib",
-            s(&calib),
-            "--tag-size-m",
-            "0.08",
-            "--id",
-            "3",
-            "--tracking",
-            mode,
-            "--out-log",
-            s(&log),
-        ]);
-        assert!(o.status.success(), "{mode}: {}", stderr(&o));
-        let lines = json_lines(&std::fs::read_to_string(&log).expect("log"));
+        let lines = track_one_tag_with(&img, &calib, "--tracking", mode, &log);
         assert_eq!(lines.len(), 1, "{mode}");
         assert_eq!(lines[0]["state"], "tracked", "{mode}: {}", lines[0]);
         let t = &lines[0]["pose"]["camera_from_marker"]["translation_m"];
