@@ -2,14 +2,23 @@
 //! in which the camera sees that vertex. The physical key prop always stands in its key pose,
 //! so a key-pose vertex that passes the live look-up's tests ([`crate::live::live_lookup`]:
 //! in the frame, facing the camera, not hidden in the visibility map) is a sample of its
-//! colour under the set's light. The memory keeps that colour (measured on the generated
-//! scene, `pa-scene/tests/texture_memory.rs`, the fallback pixels of a head turned 38
-//! degrees after a scan: remembered colours +0.65 dB over the lit model texture; remembered
-//! albedos, the colour over the fitted light at the key-pose normal and lit again at the
-//! in-between's, +0.23 dB; the seen light over the model's albedo -5.6 dB).
+//! colour under the set's light.
 //!
-//! Each vertex keeps a running weighted mean and variance of its samples (linear RGB). A
-//! sample's weight is the product of
+//! **What is remembered is a gain over the model's albedo**, not the colour itself: each
+//! sample is divided by the model's albedo at the vertex, read at the mip level of the frame
+//! pixel's footprint on the surface ([`MemoryAlbedo`], [`FOOTPRINT_LOD_BIAS`]), and a
+//! fallback pixel takes that gain times the model's albedo at the pixel. A vertex's gain
+//! carries what the model's texture lacks at the scale of the mesh (the set's light as it
+//! really falls there, and a paint the model does not have), while the texture keeps the
+//! detail between vertices. Remembering the colours themselves (before stop 37) was a
+//! blurred copy of the key prop: on the generated Wood scene, 480x270, it lowered the prop
+//! PSNR from 29.56 to 28.29 dB, on Cycles' bust from 27.34 to 27.14; the gain gives 29.61 and
+//! 27.52 (`pa-scene/examples/memory_rows.rs`, `propsalive eval --set`). With the model's
+//! textures painted flat (their mean colour: a prop painted by hand), the memory lifts the
+//! generated scene's prop from 22.17 to 24.82 dB, and to 26.44 after a scan.
+//!
+//! Each vertex keeps a running weighted mean and variance of its samples' gains (linear RGB).
+//! A sample's weight is the product of
 //!
 //! - the viewing angle: the facing cosine between the key-pose normal and the ray;
 //! - the resolution: pixels per millimetre of surface at that depth (`fx / z / 1000`);
@@ -24,16 +33,17 @@
 //! (older samples then fade as in an exponential average, so a changed light is followed).
 //!
 //! Both render paths read the memory as one more vertex attribute ([`VertexMemory::premultiplied`]):
-//! linear RGB times the vertex's confidence, and the confidence (the weight over
+//! the gain times the vertex's confidence, and the confidence (the weight over
 //! [`FULL_WEIGHT`], at most 1), interpolated like any attribute. A fallback pixel takes
-//! `memory.rgb + (1 - memory.a) * lit fallback`: the remembered colour where it is
-//! known, blending into the model's lit texture where it is not.
+//! `memory.rgb * albedo + (1 - memory.a) * lit fallback` ([`remembered_or`]): the remembered
+//! gain on the model's albedo where it is known, blending into the model's lit texture where
+//! it is not.
 
 use glam::{Mat3, Mat4, Vec3};
 use rayon::prelude::*;
 
 use crate::live::{code, live_lookup, InvDepthMap, LiveParams};
-use crate::texture::FrameSampler;
+use crate::texture::{CpuMipTexture, FrameSampler};
 
 /// Weight at which a vertex's remembered colour is fully trusted (confidence 1): about one
 /// frame seen face-on at 1 px/mm.
@@ -52,6 +62,97 @@ pub const OUTLIER_FACTOR: f32 = 0.02;
 pub const MARGIN_PX: i32 = 3;
 /// Smallest facing cosine of a sample (grazing views smear a vertex's neighbourhood).
 pub const MIN_SAMPLE_COS: f32 = 0.2;
+/// Mip levels above the one whose texel is a frame pixel at which a sample's albedo is read:
+/// the frame's colour at a point spans more than a pixel (the sensor's pixel, then the
+/// bilinear sample). Measured: 1.5 is best on both the generated scene (prop PSNR with the
+/// memory 29.36 / 29.59 / 29.60 dB at 1 / 1.5 / 2, with a scan 29.68 / 29.85 / 29.73) and
+/// Cycles' bust (27.48 / 27.52 / 27.39); on Cycles' CesiumMan 1.5 and 3 are best (24.05,
+/// 24.04 against 23.57 at 0 and 23.90 at 20).
+pub const FOOTPRINT_LOD_BIAS: f32 = 1.5;
+/// Smallest albedo (linear) a sample's gain is taken over: near-black texels say little
+/// about the light, and their gain multiplies a near-black albedo again.
+pub const MIN_ALBEDO: f32 = 0.02;
+
+/// The model's albedo at the key pose's vertices, which the samples are divided by: the
+/// base-colour texture (None: white) times `factor`, at `uvs` (one per vertex; empty: all
+/// (0, 0), as the render paths read them), at the mip level of each sample's footprint from
+/// `texels_per_m` (one per vertex, [`texels_per_metre`]; empty or 0: level 0 plus the bias).
+#[derive(Debug, Clone, Copy)]
+pub struct MemoryAlbedo<'a> {
+    pub texture: Option<&'a CpuMipTexture>,
+    pub uvs: &'a [[f32; 2]],
+    pub factor: [f32; 4],
+    pub texels_per_m: &'a [f32],
+}
+
+impl MemoryAlbedo<'_> {
+    /// A model without texture: the factor's colour everywhere.
+    pub fn uniform(factor: [f32; 4]) -> MemoryAlbedo<'static> {
+        MemoryAlbedo {
+            texture: None,
+            uvs: &[],
+            factor,
+            texels_per_m: &[],
+        }
+    }
+
+    /// The albedo (linear RGB) at vertex `i` seen at `pixels_per_m` frame pixels per metre.
+    fn at(&self, i: usize, pixels_per_m: f32) -> [f32; 3] {
+        let texel = match self.texture {
+            Some(t) => {
+                let uv = self.uvs.get(i).copied().unwrap_or([0.0; 2]);
+                let density = self.texels_per_m.get(i).copied().unwrap_or(0.0);
+                let texels_per_px = density / pixels_per_m;
+                let lod = if texels_per_px > 1.0 && texels_per_px.is_finite() {
+                    texels_per_px.log2()
+                } else {
+                    0.0
+                };
+                t.sample(uv[0], uv[1], lod + FOOTPRINT_LOD_BIAS)
+            }
+            None => [1.0; 4],
+        };
+        std::array::from_fn(|c| texel[c] * self.factor[c])
+    }
+}
+
+/// Texels of a `tex_size` texture per metre of surface at each vertex: the mean over the
+/// triangle edges that meet there of the edge's length in texels over its length in
+/// `positions` (0 where no edge has both lengths). Indices out of range are skipped.
+pub fn texels_per_metre(
+    positions: &[Vec3],
+    uvs: &[[f32; 2]],
+    indices: &[u32],
+    tex_size: (u32, u32),
+) -> Vec<f32> {
+    let n = positions.len();
+    let (tw, th) = (tex_size.0 as f32, tex_size.1 as f32);
+    let mut sum = vec![(0.0f32, 0u32); n];
+    if uvs.len() != n {
+        return vec![0.0; n];
+    }
+    for t in indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if a >= n || b >= n {
+                continue;
+            }
+            let (ua, ub) = (uvs[a], uvs[b]);
+            let texels = ((ua[0] - ub[0]) * tw).hypot((ua[1] - ub[1]) * th);
+            let metres = positions[a].distance(positions[b]);
+            let d = texels / metres;
+            if metres > 0.0 && d.is_finite() {
+                for v in [a, b] {
+                    sum[v].0 += d;
+                    sum[v].1 += 1;
+                }
+            }
+        }
+    }
+    sum.iter()
+        .map(|&(s, k)| if k > 0 { s / k as f32 } else { 0.0 })
+        .collect()
+}
 
 /// The memory of one mesh: one entry per vertex.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -102,7 +203,8 @@ impl VertexMemory {
         self.weight.get(i).copied().unwrap_or(0.0)
     }
 
-    /// Remembered linear RGB of vertex `i` (None when never seen).
+    /// Remembered gain over the model's albedo (linear RGB) of vertex `i` (None when never
+    /// seen).
     pub fn colour(&self, i: usize) -> Option<[f32; 3]> {
         (self.weight(i) > 0.0).then(|| self.mean[i])
     }
@@ -120,7 +222,7 @@ impl VertexMemory {
         (self.weight(i) / FULL_WEIGHT).min(1.0)
     }
 
-    /// Adds one sample of linear colour `rgb` with weight `w` to vertex `i`; returns whether
+    /// Adds one sample of gain `rgb` with weight `w` to vertex `i`; returns whether
     /// it was taken as an outlier. Ignored when `i` is out of range or `w` is not positive.
     pub fn add_sample(&mut self, i: usize, rgb: [f32; 3], w: f32) -> bool {
         if i >= self.weight.len() {
@@ -134,10 +236,10 @@ impl VertexMemory {
     }
 
     /// Samples every vertex the frame sees (see the module docs): `positions_world` and
-    /// `normals_world` the key pose (one per vertex of this memory), `key_depth` the key
-    /// pose's visibility map for this camera, `params` the look-up's settings (its
-    /// visibility flag and tolerances are used; the stretch test is not: the key pose is the
-    /// surface sampled).
+    /// `normals_world` the key pose (one per vertex of this memory), `albedo` the model's
+    /// albedo there, `key_depth` the key pose's visibility map for this camera, `params` the
+    /// look-up's settings (its visibility flag and tolerances are used; the stretch test is
+    /// not: the key pose is the surface sampled).
     #[allow(clippy::too_many_arguments)]
     pub fn observe(
         &mut self,
@@ -147,6 +249,7 @@ impl VertexMemory {
         camera_from_world: Mat4,
         positions_world: &[Vec3],
         normals_world: &[Vec3],
+        albedo: &MemoryAlbedo<'_>,
         lut: &[f32; 256],
     ) -> ObserveCounts {
         if positions_world.len() != self.len() || normals_world.len() != self.len() {
@@ -159,7 +262,7 @@ impl VertexMemory {
         let cam = p.frame_camera;
         // Each vertex's sample (the look-up and the frame: read-only, in parallel), then
         // added in vertex order.
-        let sample = |(&pw, &nw): (&Vec3, &Vec3)| -> Option<([f32; 3], f32)> {
+        let sample = |i: usize, (&pw, &nw): (&Vec3, &Vec3)| -> Option<([f32; 3], f32)> {
             let pc = camera_from_world.transform_point3(pw);
             let nc = rotation * nw;
             let (c, pixel) = live_lookup(&p, key_depth, pc, nc, pc, nc);
@@ -181,7 +284,9 @@ impl VertexMemory {
                 1.0
             };
             let w = cos * resolution * margin;
-            Some((frame.sample_linear(pixel[0], pixel[1], lut), w))
+            let rgb = frame.sample_linear(pixel[0], pixel[1], lut);
+            let a = albedo.at(i, resolution * 1000.0);
+            Some((std::array::from_fn(|c| rgb[c] / a[c].max(MIN_ALBEDO)), w))
         };
         // Vertices are independent: each one sampled and added in the same pass.
         self.weight
@@ -189,22 +294,25 @@ impl VertexMemory {
             .zip(self.mean.par_iter_mut())
             .zip(self.m2.par_iter_mut())
             .zip(positions_world.par_iter().zip(normals_world.par_iter()))
+            .enumerate()
             .with_min_len(1024)
-            .map(|(((weight, mean), m2), vertex)| match sample(vertex) {
-                Some((rgb, w)) => ObserveCounts {
-                    sampled: 1,
-                    outliers: usize::from(add_to((weight, mean, m2), rgb, w)),
+            .map(
+                |(i, (((weight, mean), m2), vertex))| match sample(i, vertex) {
+                    Some((rgb, w)) => ObserveCounts {
+                        sampled: 1,
+                        outliers: usize::from(add_to((weight, mean, m2), rgb, w)),
+                    },
+                    None => ObserveCounts::default(),
                 },
-                None => ObserveCounts::default(),
-            })
+            )
             .reduce(ObserveCounts::default, |mut a, b| {
                 a += b;
                 a
             })
     }
 
-    /// The vertex attribute both render paths read: linear RGB times confidence, and the
-    /// confidence, per vertex.
+    /// The vertex attribute both render paths read: the gain over the albedo times
+    /// confidence, and the confidence, per vertex.
     pub fn premultiplied(&self, out: &mut Vec<[f32; 4]>) {
         out.clear();
         out.extend((0..self.len()).map(|i| {
@@ -289,11 +397,12 @@ fn visibility_margin(key_depth: &impl InvDepthMap, p: &LiveParams, pc: Vec3) -> 
 }
 
 /// Memory of the fallback in the shading of both paths: `memory` the interpolated
-/// [`VertexMemory::premultiplied`] attribute, `lit` the lit fallback colour (linear).
+/// [`VertexMemory::premultiplied`] attribute (relit where the look relights), `albedo` the
+/// model's albedo at the pixel and `lit` the lit fallback colour (linear).
 #[inline]
-pub fn remembered_or(memory: [f32; 4], lit: [f32; 3]) -> [f32; 3] {
+pub fn remembered_or(memory: [f32; 4], albedo: [f32; 3], lit: [f32; 3]) -> [f32; 3] {
     let keep = (1.0 - memory[3]).clamp(0.0, 1.0);
-    std::array::from_fn(|c| memory[c] + keep * lit[c])
+    std::array::from_fn(|c| memory[c] * albedo[c] + keep * lit[c])
 }
 
 #[cfg(test)]

@@ -17,6 +17,28 @@ impl InvDepthMap for Flat {
     }
 }
 
+/// `m.observe` at the identity camera over a flat visibility map at 1/z = `inv_z`.
+fn observe_at(
+    m: &mut VertexMemory,
+    params: &LiveParams,
+    inv_z: f32,
+    frame: &FrameSampler<'_>,
+    (positions, normals): (&[Vec3], &[Vec3]),
+    albedo: &MemoryAlbedo<'_>,
+) -> ObserveCounts {
+    let lut = decode_lut();
+    m.observe(
+        params,
+        &Flat(inv_z),
+        frame,
+        Mat4::IDENTITY,
+        positions,
+        normals,
+        albedo,
+        lut,
+    )
+}
+
 #[test]
 fn weighted_mean_and_variance_are_exact() {
     let mut m = VertexMemory::new(1);
@@ -98,14 +120,13 @@ fn observe_samples_only_visible_front_facing_vertices_at_their_pixels() {
     let mut params = camera();
     params.visibility = true;
     let mut m = VertexMemory::new(4);
-    let counts = m.observe(
+    let counts = observe_at(
+        &mut m,
         &params,
-        &Flat(1.0),
+        1.0,
         &frame,
-        Mat4::IDENTITY,
-        &positions,
-        &normals,
-        lut,
+        (&positions, &normals),
+        &MemoryAlbedo::uniform([1.0; 4]),
     );
     assert_eq!(counts.sampled, 2);
     assert!((m.colour(0).unwrap()[0] - lut[50]).abs() < 1e-6);
@@ -117,27 +138,25 @@ fn observe_samples_only_visible_front_facing_vertices_at_their_pixels() {
     assert!((m.weight(0) - 0.1 * cos).abs() < 1e-6, "{}", m.weight(0));
     // Hidden behind a nearer key-pose surface (at 0.5 m): no sample.
     let mut hidden = VertexMemory::new(4);
-    let c = hidden.observe(
+    let c = observe_at(
+        &mut hidden,
         &params,
-        &Flat(2.0),
+        2.0,
         &frame,
-        Mat4::IDENTITY,
-        &positions,
-        &normals,
-        lut,
+        (&positions, &normals),
+        &MemoryAlbedo::uniform([1.0; 4]),
     );
     assert_eq!(c.sampled, 0);
     // At a silhouette (no surface around it in the map) the weight drops to a fifth.
     let mut edge = VertexMemory::new(4);
     params.visibility = true;
-    edge.observe(
+    observe_at(
+        &mut edge,
         &params,
-        &Flat(0.0),
+        0.0,
         &frame,
-        Mat4::IDENTITY,
-        &positions,
-        &normals,
-        lut,
+        (&positions, &normals),
+        &MemoryAlbedo::uniform([1.0; 4]),
     );
     assert!(
         (edge.weight(0) - 0.02 * cos).abs() < 1e-6,
@@ -146,14 +165,13 @@ fn observe_samples_only_visible_front_facing_vertices_at_their_pixels() {
     );
     // Wrong lengths: nothing.
     let mut short = VertexMemory::new(3);
-    let c = short.observe(
+    let c = observe_at(
+        &mut short,
         &params,
-        &Flat(1.0),
+        1.0,
         &frame,
-        Mat4::IDENTITY,
-        &positions,
-        &normals,
-        lut,
+        (&positions, &normals),
+        &MemoryAlbedo::uniform([1.0; 4]),
     );
     assert_eq!(c, ObserveCounts::default());
 }
@@ -167,12 +185,122 @@ fn the_attribute_blends_memory_into_the_fallback() {
     assert_eq!(attr.len(), 2);
     assert_eq!(attr[1], [0.0; 4]);
     let lit = [0.1, 0.1, 0.1];
+    let white = [1.0; 3];
     // Unseen: the lit fallback; half confident: halfway; interpolated attributes too.
-    assert_eq!(remembered_or(attr[1], lit), lit);
-    let half = remembered_or(attr[0], lit);
+    assert_eq!(remembered_or(attr[1], white, lit), lit);
+    let half = remembered_or(attr[0], white, lit);
     assert!((half[0] - 0.45).abs() < 1e-6 && (half[2] - 0.15).abs() < 1e-6);
     m.add_sample(0, [0.8, 0.4, 0.2], FULL_WEIGHT);
     m.premultiplied(&mut attr);
-    let full = remembered_or(attr[0], lit);
+    let full = remembered_or(attr[0], white, lit);
     assert!((full[0] - 0.8).abs() < 1e-6, "{full:?}");
+    // The remembered gain falls on the pixel's albedo.
+    let dark = remembered_or(attr[0], [0.5, 0.25, 1.0], lit);
+    assert!(
+        (dark[0] - 0.4).abs() < 1e-6 && (dark[1] - 0.1).abs() < 1e-6,
+        "{dark:?}"
+    );
+}
+
+#[test]
+fn texels_per_metre_is_the_uv_scale_of_the_surface() {
+    // A 0.5 m square mapped onto the whole of a 256-texel texture: 512 texels per metre along
+    // its sides and its diagonal alike.
+    let positions = [
+        Vec3::ZERO,
+        Vec3::new(0.5, 0.0, 0.0),
+        Vec3::new(0.5, 0.5, 0.0),
+        Vec3::new(0.0, 0.5, 0.0),
+        Vec3::new(9.0, 9.0, 9.0),
+    ];
+    let uvs = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]];
+    let d = texels_per_metre(&positions, &uvs, &[0, 1, 2, 0, 2, 3, 0, 1, 99], (256, 256));
+    for v in &d[..4] {
+        assert!((v - 512.0).abs() < 1e-3, "{d:?}");
+    }
+    // A vertex no triangle uses, an index out of range, and uvs of the wrong length.
+    assert_eq!(d[4], 0.0);
+    assert_eq!(
+        texels_per_metre(&positions, &uvs[..2], &[0, 1, 2], (256, 256)),
+        [0.0; 5]
+    );
+    // A degenerate edge (both ends at one point) is skipped, not infinite.
+    let same = [Vec3::ZERO, Vec3::ZERO, Vec3::X];
+    let d = texels_per_metre(&same, &uvs[..3], &[0, 1, 2], (256, 256));
+    assert!(d.iter().all(|v| v.is_finite()), "{d:?}");
+}
+
+/// A 64x64 texture of one-texel black and white squares: level 0 is 0 or 1 (linear), every
+/// coarser level mid grey (0.5 linear).
+fn checker() -> CpuMipTexture {
+    let mut rgba = Vec::new();
+    for y in 0..64 {
+        for x in 0..64 {
+            let v = if (x + y) % 2 == 0 { 255 } else { 0 };
+            rgba.extend_from_slice(&[v, v, v, 255]);
+        }
+    }
+    CpuMipTexture::from_srgb8(64, 64, &rgba).unwrap()
+}
+
+#[test]
+fn a_sample_is_divided_by_the_albedo_at_its_footprint() {
+    // One vertex at z = 1 m facing the camera (fx = 100 px: 100 px/m), over a frame of
+    // uniform sRGB 128 (linear 0.216); the model's albedo a fine checker whose mean is 0.5.
+    let rgba = [128u8, 128, 128, 255].repeat(100 * 100);
+    let frame = FrameSampler::new(100, 100, &rgba).unwrap();
+    let lut = decode_lut();
+    let positions = [Vec3::new(0.0, 0.0, 1.0)];
+    let normals = [Vec3::new(0.0, 0.0, -1.0)];
+    let tex = checker();
+    // A white texel's centre.
+    let uvs = [[0.5 / 64.0, 0.5 / 64.0]];
+    let mut params = camera();
+    params.visibility = true;
+    let gain_at = |texels_per_m: f32, factor: [f32; 4]| {
+        let mut m = VertexMemory::new(1);
+        let albedo = MemoryAlbedo {
+            texture: Some(&tex),
+            uvs: &uvs,
+            factor,
+            texels_per_m: &[texels_per_m],
+        };
+        let c = observe_at(
+            &mut m,
+            &params,
+            1.0,
+            &frame,
+            (&positions, &normals),
+            &albedo,
+        );
+        assert_eq!(c.sampled, 1);
+        m.colour(0).unwrap()
+    };
+    let seen = lut[128];
+    // 6400 texels/m at 100 px/m: 64 texels a pixel, level 6 + bias, mid grey: the frame's
+    // grey is the checker's mean seen from afar, so the gain is seen / 0.5.
+    let far = gain_at(6400.0, [1.0; 4]);
+    assert!((far[0] - seen / 0.5).abs() < 0.01, "{far:?} {seen}");
+    // The base colour factor scales the albedo, per channel.
+    let tinted = gain_at(6400.0, [0.5, 1.0, 1.0, 1.0]);
+    assert!((tinted[0] - seen / 0.25).abs() < 0.02, "{tinted:?}");
+    assert!((tinted[1] - seen / 0.5).abs() < 0.01, "{tinted:?}");
+    // At 1 texel a pixel the level is the bias alone (1.5): still mostly grey, never the
+    // white texel alone (gain = seen) nor the black one (gain = seen / MIN_ALBEDO).
+    let near = gain_at(100.0, [1.0; 4]);
+    assert!(near[0] > seen * 1.2 && near[0] < seen * 3.0, "{near:?}");
+    // No texture: the factor alone.
+    let mut m = VertexMemory::new(1);
+    observe_at(
+        &mut m,
+        &params,
+        1.0,
+        &frame,
+        (&positions, &normals),
+        &MemoryAlbedo::uniform([0.5, 0.5, 0.0, 1.0]),
+    );
+    let g = m.colour(0).unwrap();
+    assert!((g[0] - seen / 0.5).abs() < 1e-4, "{g:?}");
+    // A black albedo: the gain over MIN_ALBEDO, finite.
+    assert!((g[2] - seen / MIN_ALBEDO).abs() < 1e-2, "{g:?}");
 }

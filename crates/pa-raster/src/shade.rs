@@ -350,7 +350,7 @@ impl ShadeContext<'_> {
                     memory[c] *= factor[c];
                 }
             }
-            let rgb = crate::memory::remembered_or(memory, lit);
+            let rgb = crate::memory::remembered_or(memory, [a[0], a[1], a[2]], lit);
             if grazing {
                 std::array::from_fn(|c| rgb[c] + s[c] * g_anim)
             } else {

@@ -166,8 +166,10 @@ fn remembered_texturing_is_closer_to_the_truth_and_matches_its_golden_on_both_pa
             Tolerance::DEFAULT,
         );
     }
+    // Remembered colours gained 0.65-0.74 dB on these fallback pixels (a blurred copy of the
+    // key prop); the gain over the model's albedo 1.33-1.45 dB (stop 37).
     for (fallback_gain, prop_gain) in gains {
-        assert!(fallback_gain > 0.3, "{fallback_gain} dB");
+        assert!(fallback_gain > 1.0, "{fallback_gain} dB");
         assert!(prop_gain > 0.0, "{prop_gain} dB");
     }
 }

@@ -14,7 +14,7 @@
 //! (the GPU path poses and rasterises the key pose on the CPU for it: a few milliseconds).
 
 use glam::Mat4;
-use pa_raster::memory::{ObserveCounts, VertexMemory};
+use pa_raster::memory::{texels_per_metre, MemoryAlbedo, ObserveCounts, VertexMemory};
 
 use super::texture::CpuState;
 use super::{ArError, ArPipeline, FrameTimes, Texturing};
@@ -31,6 +31,9 @@ pub(super) struct PropMemory {
     /// The render paths' vertex attribute of each primitive
     /// ([`VertexMemory::premultiplied`]), refreshed after each update.
     pub(super) attributes: Vec<Vec<[f32; 4]>>,
+    /// Texels of each primitive's albedo per metre of its key pose, per vertex
+    /// ([`texels_per_metre`]): made on the first update, kept while the key pose is.
+    texels_per_m: Vec<Vec<f32>>,
 }
 
 /// The texture memory of all props.
@@ -61,6 +64,7 @@ impl TextureMemory {
                 m.marker_from_prop = placement;
                 m.primitives = counts.iter().map(|&n| VertexMemory::new(n)).collect();
                 m.attributes = counts.iter().map(|&n| vec![[0.0; 4]; n]).collect();
+                m.texels_per_m.clear();
             }
         }
     }
@@ -78,23 +82,42 @@ impl TextureMemory {
     pub(super) fn observe(
         &mut self,
         cpu: &CpuState,
-        placements: &[Mat4],
+        props: &[super::Prop],
         view: &MemoryView<'_>,
     ) -> Result<ObserveCounts, ArError> {
-        self.prepare(&cpu.twins, placements, view.key_pose_s);
+        let placements: Vec<Mat4> = props.iter().map(|p| p.marker_from_prop).collect();
+        self.prepare(&cpu.twins, &placements, view.key_pose_s);
         let frame = pa_raster::FrameSampler::new(view.width, view.height, view.rgba8)?;
         let mut params = pa_raster::LiveParams::new(pa_raster::FrameCamera::new(view.camera));
         params.visibility = true;
         let lut = pa_raster::srgb::decode_lut();
         let key_depth = cpu.renderer.key_depth();
         let mut counts = ObserveCounts::default();
-        for (m, tw) in self.props.iter_mut().zip(&cpu.twins) {
-            for ((mem, attr), key) in m
+        for ((m, tw), prop) in self.props.iter_mut().zip(&cpu.twins).zip(props) {
+            let meshes = tw.live_meshes(&prop.model);
+            if m.texels_per_m.len() != meshes.len() {
+                m.texels_per_m = meshes
+                    .iter()
+                    .map(|lm| {
+                        let me = &lm.mesh;
+                        let size = me.albedo.map_or((1, 1), |t| t.size());
+                        texels_per_metre(lm.key_positions_world, me.uvs, me.indices, size)
+                    })
+                    .collect();
+            }
+            for (((mem, attr), key), (lm, density)) in m
                 .primitives
                 .iter_mut()
                 .zip(m.attributes.iter_mut())
                 .zip(&tw.key)
+                .zip(meshes.iter().zip(&m.texels_per_m))
             {
+                let albedo = MemoryAlbedo {
+                    texture: lm.mesh.albedo,
+                    uvs: lm.mesh.uvs,
+                    factor: lm.mesh.base_color_factor,
+                    texels_per_m: density,
+                };
                 counts += mem.observe(
                     &params,
                     key_depth,
@@ -102,6 +125,7 @@ impl TextureMemory {
                     view.camera_from_marker,
                     &key.positions_world,
                     &key.normals_world,
+                    &albedo,
                     lut,
                 );
                 mem.premultiplied(attr);
@@ -266,7 +290,6 @@ impl ArPipeline {
             .collect();
         cpu.renderer
             .render_key_depth(&raster_camera, camera_from_marker, &key_meshes);
-        let placements: Vec<Mat4> = self.props.iter().map(|p| p.marker_from_prop).collect();
         let view = MemoryView {
             rgba8,
             width,
@@ -278,6 +301,6 @@ impl ArPipeline {
         let Some(cpu) = self.cpu.as_deref() else {
             return Ok(ObserveCounts::default());
         };
-        self.memory.observe(cpu, &placements, &view)
+        self.memory.observe(cpu, &self.props, &view)
     }
 }

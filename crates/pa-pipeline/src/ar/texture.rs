@@ -502,8 +502,7 @@ impl ArPipeline {
                 camera_from_marker,
                 key_pose_s: times.key_pose_s,
             };
-            let placements: Vec<Mat4> = props.iter().map(|p| p.marker_from_prop).collect();
-            self.memory.observe(cpu, &placements, &view)?;
+            self.memory.observe(cpu, props, &view)?;
         }
         let mut meshes: Vec<_> = twins
             .iter()

@@ -387,7 +387,8 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
                 );
             }
         }
-        var memory_rgb = in.memory.rgb;
+        // The remembered gain over the model's albedo (pa_raster::memory::remembered_or).
+        var memory_rgb = in.memory.rgb * albedo.rgb;
         if (relight && in.memory.a > 0.0) {
             memory_rgb *= ratio;
         }
