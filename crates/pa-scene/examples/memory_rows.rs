@@ -1,19 +1,30 @@
 //! The texture memory's eval rows alone (wood, seeds 1 and 2, 480x270, the eval's frames):
-//! ours with the memory off, on, and primed by the scan orbit; mean prop PSNR and the
+//! ours with the memory off, on, and primed by the scan orbit, with the model as printed and
+//! with its textures painted flat (their mean colour); mean prop PSNR and the
 //! degradation bins at 25-35 and 35-50 degrees. `cargo run --release --example memory_rows`.
 #![allow(clippy::unwrap_used)]
 
 use pa_render::Renderer;
-use pa_scene::memory::{run_scene_memory, MemoryMode};
+use pa_scene::memory::{run_scene_memory, MemoryMode, TwinTexture};
 use pa_scene::SceneSpec;
 
 fn main() {
     let mut renderer = Renderer::new().unwrap();
     let frames: Vec<u32> = (0..3).chain((3..49).step_by(2)).collect();
+    let (printed, flat) = (TwinTexture::AsPrinted, TwinTexture::FlatColour);
     for (name, mode) in [
-        ("memory off", None),
-        ("memory on", Some(MemoryMode::On)),
-        ("memory + scan", Some(MemoryMode::Scan)),
+        ("memory off", (None, printed)),
+        ("memory on", (Some(MemoryMode::On), printed)),
+        ("memory + scan", (Some(MemoryMode::Scan), printed)),
+        ("model painted flat, memory off", (None, flat)),
+        (
+            "model painted flat, memory on",
+            (Some(MemoryMode::On), flat),
+        ),
+        (
+            "model painted flat, memory + scan",
+            (Some(MemoryMode::Scan), flat),
+        ),
     ] {
         let mut all = Vec::new();
         for seed in [1, 2] {

@@ -194,6 +194,50 @@ pub struct Revealed {
     pub off_edge: Vec<bool>,
 }
 
+/// The twin's model against the prop as printed on the set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TwinTexture {
+    /// The model the prop was printed from, texture and all (the generated scene's truth).
+    #[default]
+    AsPrinted,
+    /// The same model with each texture replaced by its mean colour: a print painted by hand
+    /// (or a model whose texture was never made), so the model knows the prop's shape and
+    /// overall colour but not its paint.
+    FlatColour,
+}
+
+/// `model` with each image replaced by its mean colour (the mean in linear light, encoded
+/// again; alpha the rounded mean), at the image's size.
+pub fn flat_textures(model: &pa_model::Model) -> pa_model::Model {
+    let lut = crate::variant::srgb_lut();
+    let mut m = model.clone();
+    for image in &mut m.images {
+        let n = image.rgba8.len() / 4;
+        if n == 0 {
+            continue;
+        }
+        let mut sum = [0f64; 4];
+        for p in image.rgba8.chunks_exact(4) {
+            for c in 0..3 {
+                sum[c] += f64::from(lut[p[c] as usize]);
+            }
+            sum[3] += f64::from(p[3]);
+        }
+        let mean: [u8; 4] = std::array::from_fn(|c| {
+            let v = sum[c] / n as f64;
+            if c == 3 {
+                v.round().clamp(0.0, 255.0) as u8
+            } else {
+                crate::variant::srgb_encode(v as f32)
+            }
+        });
+        for p in image.rgba8.chunks_exact_mut(4) {
+            p.copy_from_slice(&mean);
+        }
+    }
+    m
+}
+
 /// Builds the frame pipeline for a scene: the real tracker on the scene's board, one prop of
 /// the pipeline per copy of the prop on the set ([`crate::SceneSpec::props`]).
 pub fn pipeline_for(
@@ -201,6 +245,20 @@ pub fn pipeline_for(
     renderer: &mut Renderer,
     settings: ArSettings,
 ) -> Result<ArPipeline, SceneError> {
+    pipeline_for_twin(scene, renderer, settings, TwinTexture::AsPrinted)
+}
+
+/// [`pipeline_for`] with the twin's model as `twin` says.
+pub fn pipeline_for_twin(
+    scene: &Scene,
+    renderer: &mut Renderer,
+    settings: ArSettings,
+    twin: TwinTexture,
+) -> Result<ArPipeline, SceneError> {
+    let model = match twin {
+        TwinTexture::AsPrinted => scene.model.clone(),
+        TwinTexture::FlatColour => flat_textures(&scene.model),
+    };
     let camera = CameraModel::pinhole(scene.intrinsics);
     let tracker = Tracker::new(
         camera,
@@ -210,7 +268,7 @@ pub fn pipeline_for(
     )?;
     let mut p = ArPipeline::new(
         renderer,
-        scene.model.clone(),
+        model.clone(),
         0,
         camera,
         scene.marker_from_prop(),
@@ -219,7 +277,7 @@ pub fn pipeline_for(
     )?;
     // Every further copy of the prop on the set is a prop of the pipeline, at its spot.
     for m in scene.marker_from_props().into_iter().skip(1) {
-        p.add_prop(renderer, scene.model.clone(), 0, m)?;
+        p.add_prop(renderer, model.clone(), 0, m)?;
     }
     p.set_board_surfaces(Some(pa_pipeline::ar::BoardSurfaces::new(
         &scene.board,
@@ -321,10 +379,34 @@ pub fn run_scene_setup<E: From<SceneError>>(
     frames: impl IntoIterator<Item = u32>,
     keep_passes: bool,
     setup: impl FnOnce(&Scene, &mut Renderer, &mut ArPipeline) -> Result<(), SceneError>,
+    each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &Revealed) -> Result<(), E>,
+) -> Result<Vec<FrameMetrics>, E> {
+    run_scene_twin(
+        renderer,
+        spec,
+        settings,
+        TwinTexture::AsPrinted,
+        frames,
+        keep_passes,
+        setup,
+        each,
+    )
+}
+
+/// [`run_scene_setup`] with the twin's model as `twin` says ([`pipeline_for_twin`]).
+#[allow(clippy::too_many_arguments)]
+pub fn run_scene_twin<E: From<SceneError>>(
+    renderer: &mut Renderer,
+    spec: SceneSpec,
+    settings: ArSettings,
+    twin: TwinTexture,
+    frames: impl IntoIterator<Item = u32>,
+    keep_passes: bool,
+    setup: impl FnOnce(&Scene, &mut Renderer, &mut ArPipeline) -> Result<(), SceneError>,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics, &Revealed) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
     let scene = Scene::new(spec, renderer)?;
-    let mut pipeline = pipeline_for(&scene, renderer, settings)?;
+    let mut pipeline = pipeline_for_twin(&scene, renderer, settings, twin)?;
     pipeline.set_keep_passes(keep_passes);
     setup(&scene, renderer, &mut pipeline)?;
     let mut all = Vec::new();
@@ -364,6 +446,40 @@ pub fn run_scene_setup<E: From<SceneError>>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The flat-painted twin keeps each image's size and its mean colour in linear light: a
+    /// black and white pair is mid grey (linear 0.5, sRGB 188), not sRGB 128.
+    #[test]
+    fn flat_textures_are_the_mean_colour_in_linear_light() {
+        let image = |rgba8: Vec<u8>, width| pa_model::Image {
+            name: None,
+            width,
+            height: 1,
+            rgba8,
+        };
+        let model = pa_model::Model {
+            path: "test.glb".into(),
+            nodes: vec![],
+            roots: vec![],
+            meshes: vec![],
+            skins: vec![],
+            materials: vec![],
+            images: vec![
+                image(vec![0, 0, 0, 255, 255, 255, 255, 255], 2),
+                image(vec![200, 10, 90, 100], 1),
+                image(vec![], 0),
+            ],
+            animations: vec![],
+            warnings: vec![],
+        };
+        let flat = flat_textures(&model);
+        assert_eq!(
+            flat.images[0].rgba8,
+            [188, 188, 188, 255, 188, 188, 188, 255]
+        );
+        assert_eq!(flat.images[1].rgba8, model.images[1].rgba8);
+        assert!(flat.images[2].rgba8.is_empty());
+    }
 
     /// Regression: the demo's median rotation error read "0.000 deg" once the tracker got
     /// below the f32 `acos` step (about 0.04 degrees); small angles must be resolved.

@@ -12,6 +12,7 @@ use pa_pipeline::ar::ArFrame;
 
 use crate::error::SceneError;
 use crate::eval::FrameMetrics;
+pub use crate::eval::TwinTexture;
 use crate::scene::{Scene, SceneFrame, SceneSpec};
 
 /// Views of the scan orbit in `eval` (15 degrees apart).
@@ -30,23 +31,43 @@ pub enum MemoryMode {
 pub struct MemoryMethod {
     pub name: &'static str,
     pub settings: ArSettings,
-    pub mode: MemoryMode,
+    /// None: the memory off.
+    pub mode: Option<MemoryMode>,
+    /// The twin's model against the printed prop.
+    pub twin: TwinTexture,
 }
 
 /// The memory rows, after the methods of [`crate::methods::methods`]; compare with
-/// "ours: live + visibility, ray fill" (the same pipeline with the memory off).
+/// "ours: live + visibility, ray fill" (the same pipeline with the memory off). The last
+/// three give the twin a model whose textures are their mean colour
+/// ([`TwinTexture::FlatColour`]): what the memory is for, a prop whose paint the model does
+/// not know.
 pub fn memory_methods() -> Vec<MemoryMethod> {
+    let row = |name, mode, twin| MemoryMethod {
+        name,
+        settings: ArSettings::ours(),
+        mode,
+        twin,
+    };
+    let (printed, flat) = (TwinTexture::AsPrinted, TwinTexture::FlatColour);
     vec![
-        MemoryMethod {
-            name: "ours: + texture memory",
-            settings: ArSettings::ours(),
-            mode: MemoryMode::On,
-        },
-        MemoryMethod {
-            name: "ours: + texture memory + scan",
-            settings: ArSettings::ours(),
-            mode: MemoryMode::Scan,
-        },
+        row("ours: + texture memory", Some(MemoryMode::On), printed),
+        row(
+            "ours: + texture memory + scan",
+            Some(MemoryMode::Scan),
+            printed,
+        ),
+        row("model painted flat: ours", None, flat),
+        row(
+            "model painted flat: + texture memory",
+            Some(MemoryMode::On),
+            flat,
+        ),
+        row(
+            "model painted flat: + texture memory + scan",
+            Some(MemoryMode::Scan),
+            flat,
+        ),
     ]
 }
 
@@ -124,12 +145,13 @@ pub fn prime_with_scan(
     Ok(used)
 }
 
-/// [`crate::eval::run_scene`] with the texture memory as `memory` says (None: off).
+/// [`crate::eval::run_scene`] with the texture memory as `memory` says (None: off) and the
+/// twin's model as `twin` says.
 pub fn run_scene_memory<E: From<SceneError>>(
     renderer: &mut Renderer,
     spec: SceneSpec,
     settings: ArSettings,
-    memory: Option<MemoryMode>,
+    (memory, twin): (Option<MemoryMode>, TwinTexture),
     frames: impl IntoIterator<Item = u32>,
     mut each: impl FnMut(&SceneFrame, &ArFrame, &FrameMetrics) -> Result<(), E>,
 ) -> Result<Vec<FrameMetrics>, E> {
@@ -143,10 +165,11 @@ pub fn run_scene_memory<E: From<SceneError>>(
         }
         Ok(())
     };
-    crate::eval::run_scene_setup(
+    crate::eval::run_scene_twin(
         renderer,
         spec,
         settings,
+        twin,
         frames,
         false,
         prepare,

@@ -23,7 +23,7 @@ use pa_render::Renderer;
 use pa_report::eval::{Curve, CurvePoint, EvalReport, MethodRow};
 use pa_report::stats::{mean, median};
 use pa_scene::eval::run_scene_shadows;
-use pa_scene::memory::{memory_methods, run_scene_memory};
+use pa_scene::memory::{memory_methods, run_scene_memory, TwinTexture};
 use pa_scene::methods::{methods, Method};
 use pa_scene::scene::{Background, CameraPath};
 use pa_scene::tracking::{tracking_errors, SensorNoise, TrackingErrors};
@@ -245,9 +245,14 @@ pub fn run(args: Args) -> Result<()> {
                 key_frames: vec![0],
                 camera_path: CameraPath::Handheld,
             };
-            (m, Some(mm.mode))
+            (m, (mm.mode, mm.twin))
         });
-        for (m, memory) in methods().into_iter().map(|m| (m, None)).chain(memory_rows) {
+        let printed = (None, TwinTexture::AsPrinted);
+        for (m, memory) in methods()
+            .into_iter()
+            .map(|m| (m, printed))
+            .chain(memory_rows)
+        {
             let mut all = Vec::new();
             let mut seed_of = Vec::new();
             for &seed in &args.seeds {
