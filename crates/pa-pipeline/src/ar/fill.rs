@@ -102,11 +102,73 @@ impl ArPipeline {
             Fill::Patch { .. } | Fill::None => None,
         };
         if let (Some(m), Some(region)) = (method, fill_region) {
-            self.diminisher
-                .fill_in_bbox(&mut background, fill_mask, region, &m)?;
+            // The ray fill invents what it does not see: tag pixels are redrawn from the
+            // board's print first (a clean plate shows them already).
+            let mut surfaces = self.surfaces.take();
+            let mut spare = self.spare_fill_mask.take();
+            let painted = match m {
+                FillMethod::Rays(_) => {
+                    let work = (region, RAY_FILL_TAG_MARGIN_PX);
+                    let bg = &mut background;
+                    paint_known_tags(&mut surfaces, view, bg, fill_mask, work, &mut spare).1
+                }
+                _ => false,
+            };
+            let mask = match (&spare, painted) {
+                (Some(s), true) => s,
+                _ => fill_mask,
+            };
+            let filled = self
+                .diminisher
+                .fill_in_bbox(&mut background, mask, region, &m);
+            self.surfaces = surfaces;
+            self.spare_fill_mask = spare;
+            filled?;
         }
         Ok(background)
     }
+}
+
+/// Pixels around the ray fill's region where the tags' black and white levels are measured
+/// (the patch fill's work region: its margin).
+const RAY_FILL_TAG_MARGIN_PX: u32 = 16;
+
+/// Redraws the board's tags into `background` where `fill_mask` would have them invented
+/// ([`BoardSurfaces::paint_tags`](super::surfaces::BoardSurfaces::paint_tags)), over the fill
+/// `region` grown by `margin` (its known tag pixels give the black and white levels). Returns the surface labels of that work region (None without board surfaces) and,
+/// when any pixel was painted, a copy of the fill mask with those pixels known.
+fn paint_known_tags<'s>(
+    surfaces: &'s mut Option<(super::BoardSurfaces, Option<Mask>)>,
+    view: &FrameView<'_>,
+    background: &mut ImageRgba8,
+    fill_mask: &Mask,
+    (region, margin): (Rect, u32),
+    spare: &mut Option<Mask>,
+) -> (Option<&'s Mask>, bool) {
+    let Some((s, buf)) = surfaces.as_mut() else {
+        return (None, false);
+    };
+    let (w, h) = background.size();
+    let work = region.expand_clipped(margin, w, h);
+    let (camera, pose) = (&view.camera_model, view.camera_from_marker);
+    let Some(labels) = super::surfaces::surface_labels(s, buf, camera, pose, (w, h), work) else {
+        return (None, false);
+    };
+    if !s.has_tags_to_paint(work, labels, fill_mask) {
+        return (Some(labels), false);
+    }
+    // The copy reuses the last frame's buffer.
+    match &mut *spare {
+        Some(m) if m.size() == fill_mask.size() => {
+            m.as_mut_slice().copy_from_slice(fill_mask.as_slice())
+        }
+        slot => *slot = Some(fill_mask.clone()),
+    }
+    let Some(m) = spare.as_mut() else {
+        return (Some(labels), false);
+    };
+    let painted = s.paint_tags(camera, pose, work, labels, background.as_mut_slice(), m) > 0;
+    (Some(labels), painted)
 }
 
 /// What the patch fill keeps from one frame for the next: the diminished background, its fill
@@ -163,28 +225,17 @@ impl ArPipeline {
         };
         // The surfaces over the patch fill's work region (its margin, and a pixel more).
         let mut surfaces = self.surfaces.take();
-        let (w, h) = background.size();
         let params = PatchParams::default();
         let margin = params.margin_px.max(region.width.max(region.height) / 4) + 1;
-        // Tag pixels to fill are redrawn from the board's print first (then known to the
-        // patch fill), in a copy of the fill mask.
-        let mut painted_mask: Option<Mask> = None;
-        let labels = match surfaces.as_mut() {
-            Some((s, buf)) => {
-                let work = region.expand_clipped(margin, w, h);
-                let (camera, pose) = (&view.camera_model, view.camera_from_marker);
-                let l = super::surfaces::surface_labels(s, buf, camera, pose, (w, h), work);
-                if let Some(l) = l {
-                    let mut m = fill_mask.clone();
-                    let img = background.as_mut_slice();
-                    if s.paint_tags(camera, pose, work, l, img, &mut m) > 0 {
-                        painted_mask = Some(m);
-                    }
-                }
-                l
-            }
-            None => None,
-        };
+        let mut spare = self.spare_fill_mask.take();
+        let (labels, painted) = paint_known_tags(
+            &mut surfaces,
+            view,
+            &mut background,
+            fill_mask,
+            (region, margin),
+            &mut spare,
+        );
         let method = FillMethod::Patch(PatchFill {
             params,
             prior,
@@ -192,13 +243,15 @@ impl ArPipeline {
             surfaces: labels,
             align_prior: self.settings.align_plate.then(PlateAlign::default),
         });
-        let filled = self.diminisher.fill_in_bbox(
-            &mut background,
-            painted_mask.as_ref().unwrap_or(fill_mask),
-            region,
-            &method,
-        );
+        let mask = match (&spare, painted) {
+            (Some(m), true) => m,
+            _ => fill_mask,
+        };
+        let filled = self
+            .diminisher
+            .fill_in_bbox(&mut background, mask, region, &method);
         self.surfaces = surfaces;
+        self.spare_fill_mask = spare;
         filled?;
         match &mut self.patch_prior {
             Some(s) if s.image.size() == background.size() => {

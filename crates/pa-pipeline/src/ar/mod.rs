@@ -117,6 +117,9 @@ pub struct ArPipeline {
     memory: memory::TextureMemory,
     /// The board's surfaces for the patch fill, and their label map ([`surfaces`]).
     surfaces: Option<(BoardSurfaces, Option<Mask>)>,
+    /// The fill mask with the board's redrawn tag pixels known (`fill.rs`), kept for the
+    /// next frame's copy.
+    spare_fill_mask: Option<Mask>,
     /// Frame-sized buffers handed back by [`ArPipeline::recycle`] and
     /// [`ArPipeline::recycle_frame`], reused by the next frame (empty until then).
     spare: SpareBuffers,
@@ -257,6 +260,7 @@ impl ArPipeline {
             hide: None,
             memory: memory::TextureMemory::default(),
             surfaces: None,
+            spare_fill_mask: None,
             spare: SpareBuffers::default(),
         })
     }

@@ -50,8 +50,13 @@ pub const TAG_GROW_PX: f64 = 1.5;
 /// Known pixels of each kind (black, white) needed to measure a frame's tag levels.
 pub const MIN_LEVEL_SAMPLES: usize = 12;
 /// The tag levels are measured on every `LEVEL_STRIDE`-th pixel of every `LEVEL_STRIDE`-th
-/// row of the work region.
+/// row of the work region, or on a coarser grid of about [`LEVEL_GRID_POINTS`] points when
+/// the region is larger.
 pub const LEVEL_STRIDE: usize = 2;
+/// Grid points of the level measurement at most (about): a mean over hundreds of known tag
+/// pixels is as good as one over thousands, and the back-projections are the painting's
+/// main cost (the ray fill's tags at 1280x720: 1.2 ms with every other pixel).
+pub const LEVEL_GRID_POINTS: usize = 4096;
 
 /// The board's printed surfaces on the marker plane (z = 0, marker frame, metres).
 #[derive(Debug, Clone, PartialEq)]
@@ -147,13 +152,25 @@ impl BoardSurfaces {
         }
     }
 
+    /// Whether [`BoardSurfaces::paint_tags`] would paint anything: a pixel of `fill` in
+    /// `rect` set (not hidden) where `labels` shows a tag, on a board with tags.
+    pub fn has_tags_to_paint(&self, rect: Rect, labels: &Mask, fill: &Mask) -> bool {
+        let w = fill.width() as usize;
+        let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
+        let (lab, f) = (labels.as_slice(), fill.as_slice());
+        !self.prints.is_empty()
+            && (rect.y as usize..(rect.y + rect.height) as usize)
+                .any(|y| (y * w + x0..y * w + x1).any(|i| lab[i] == TAG && f[i] == Mask::SET))
+    }
+
     /// Paints the board's known print into the pixels of `fill` (set, not hidden) that show a
     /// tag (`labels` == [`TAG`]) in `rect`, and clears them in `fill`: a covered tag is
     /// redrawn from its pattern, not invented. Each pixel is the mean of 2x2 samples of the
     /// pattern (back-projected onto the marker plane), mapped to this frame's black and white
     /// as measured on the known pixels of the tags in `rect` (mean colour of the known tag
     /// pixels the pattern says are black, and of those it says are white, each at least
-    /// [`MIN_LEVEL_SAMPLES`], on a grid of step [`LEVEL_STRIDE`]). Returns the pixels painted
+    /// [`MIN_LEVEL_SAMPLES`], on a grid of step [`LEVEL_STRIDE`] or of about
+    /// [`LEVEL_GRID_POINTS`] points). Returns the pixels painted
     /// (0 when the levels are unknown).
     pub fn paint_tags(
         &self,
@@ -168,13 +185,9 @@ impl BoardSurfaces {
         let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
         let rows = rect.y as usize..(rect.y + rect.height) as usize;
         let lab = labels.as_slice();
-        // Nothing to paint: no need to measure the levels.
         let to_paint = |i: usize, f: u8| lab[i] == TAG && f == Mask::SET;
-        if self.prints.is_empty()
-            || !rows
-                .clone()
-                .any(|y| (y * w + x0..y * w + x1).any(|i| to_paint(i, fill.as_slice()[i])))
-        {
+        // Nothing to paint: no need to measure the levels.
+        if !self.has_tags_to_paint(rect, labels, fill) {
             return 0;
         }
         let plane = PlaneRays::new(camera, camera_from_marker);
@@ -190,9 +203,9 @@ impl BoardSurfaces {
             }
             Some(n as f32 / 4.0)
         };
-        // Levels from the known tag pixels (pure black or pure white samples only) on every
-        // other pixel of every other row (a mean over thousands of pixels either way, at a
-        // quarter of the back-projections), rows in parallel. The sums are of bytes: exact in
+        // Levels from the known tag pixels (pure black or pure white samples only) on a grid
+        // of every other pixel of every other row or coarser (LEVEL_GRID_POINTS), rows in
+        // parallel. The sums are of bytes: exact in
         // any order.
         type Levels = ([f64; 3], usize);
         let add = |a: Levels, b: Levels| {
@@ -203,13 +216,15 @@ impl BoardSurfaces {
         };
         let known = fill.as_slice();
         let img: &[u8] = image;
+        let area = rect.width as f64 * rect.height as f64;
+        let stride = LEVEL_STRIDE.max((area / LEVEL_GRID_POINTS as f64).sqrt().ceil() as usize);
         let (black, white) = rows
             .clone()
             .into_par_iter()
-            .step_by(LEVEL_STRIDE)
+            .step_by(stride)
             .map(|y| {
                 let (mut black, mut white): (Levels, Levels) = Default::default();
-                for i in (y * w + x0..y * w + x1).step_by(LEVEL_STRIDE) {
+                for i in (y * w + x0..y * w + x1).step_by(stride) {
                     if lab[i] != TAG || known[i] != 0 {
                         continue;
                     }
