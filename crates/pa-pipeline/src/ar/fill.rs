@@ -8,6 +8,7 @@ use pa_diminish::{
     PatchParams, PatchPrior, PlateAlign, RayDirections, Rect,
 };
 
+use super::surfaces::PaintTags;
 use super::texture::{Bbox, Textured};
 use super::{ArError, ArPipeline, Fill, FrameView};
 
@@ -108,7 +109,7 @@ impl ArPipeline {
             let mut spare = self.spare_fill_mask.take();
             let painted = match m {
                 FillMethod::Rays(_) => {
-                    let work = (region, RAY_FILL_TAG_MARGIN_PX);
+                    let work = (region, RAY_FILL_TAG_MARGIN_PX, PaintTags::SetAndHidden);
                     let bg = &mut background;
                     paint_known_tags(&mut surfaces, view, bg, fill_mask, work, &mut spare).1
                 }
@@ -130,19 +131,21 @@ impl ArPipeline {
 }
 
 /// Pixels around the ray fill's region where the tags' black and white levels are measured
-/// (the patch fill's work region: its margin).
+/// (the patch fill measures them over its own, larger work region).
 const RAY_FILL_TAG_MARGIN_PX: u32 = 16;
 
 /// Redraws the board's tags into `background` where `fill_mask` would have them invented
 /// ([`BoardSurfaces::paint_tags`](super::surfaces::BoardSurfaces::paint_tags)), over the fill
-/// `region` grown by `margin` (its known tag pixels give the black and white levels). Returns the surface labels of that work region (None without board surfaces) and,
-/// when any pixel was painted, a copy of the fill mask with those pixels known.
+/// `region` grown by `margin` (its known tag pixels give the black and white levels).
+/// Returns the surface labels of that work region (None without board surfaces) and whether
+/// any pixel was painted; if so, `spare` holds a copy of the fill mask with those pixels
+/// known (the buffer is reused from frame to frame).
 fn paint_known_tags<'s>(
     surfaces: &'s mut Option<(super::BoardSurfaces, Option<Mask>)>,
     view: &FrameView<'_>,
     background: &mut ImageRgba8,
     fill_mask: &Mask,
-    (region, margin): (Rect, u32),
+    (region, margin, which): (Rect, u32, PaintTags),
     spare: &mut Option<Mask>,
 ) -> (Option<&'s Mask>, bool) {
     let Some((s, buf)) = surfaces.as_mut() else {
@@ -154,7 +157,7 @@ fn paint_known_tags<'s>(
     let Some(labels) = super::surfaces::surface_labels(s, buf, camera, pose, (w, h), work) else {
         return (None, false);
     };
-    if !s.has_tags_to_paint(work, labels, fill_mask) {
+    if !s.has_tags_to_paint(work, labels, fill_mask, which) {
         return (Some(labels), false);
     }
     // The copy reuses the last frame's buffer.
@@ -167,7 +170,8 @@ fn paint_known_tags<'s>(
     let Some(m) = spare.as_mut() else {
         return (Some(labels), false);
     };
-    let painted = s.paint_tags(camera, pose, work, labels, background.as_mut_slice(), m) > 0;
+    let img = background.as_mut_slice();
+    let painted = s.paint_tags(camera, pose, work, labels, img, m, which) > 0;
     (Some(labels), painted)
 }
 
@@ -233,7 +237,7 @@ impl ArPipeline {
             view,
             &mut background,
             fill_mask,
-            (region, margin),
+            (region, margin, PaintTags::Set),
             &mut spare,
         );
         let method = FillMethod::Patch(PatchFill {

@@ -109,6 +109,23 @@ impl TagPrint {
     }
 }
 
+/// Which tag pixels of a fill mask [`BoardSurfaces::paint_tags`] redraws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PaintTags {
+    /// The set pixels: those the fill would invent.
+    Set,
+    /// The hidden ones too (under the twin's opaque interior). The ray fill's rays then stop
+    /// at the print there whether or not those pixels are hidden, so keeping the passes
+    /// (which hides nothing) leaves the composite unchanged.
+    SetAndHidden,
+}
+
+impl PaintTags {
+    fn paints(self, f: u8) -> bool {
+        f == Mask::SET || (self == PaintTags::SetAndHidden && f == Mask::HIDDEN)
+    }
+}
+
 impl BoardSurfaces {
     /// The tags of `board`, and a square sheet of side `sheet_side_m` centred on the marker's
     /// origin (where the generated and the Blender sets print it), if given.
@@ -153,14 +170,20 @@ impl BoardSurfaces {
     }
 
     /// Whether [`BoardSurfaces::paint_tags`] would paint anything: a pixel of `fill` in
-    /// `rect` set (not hidden) where `labels` shows a tag, on a board with tags.
-    pub fn has_tags_to_paint(&self, rect: Rect, labels: &Mask, fill: &Mask) -> bool {
+    /// `rect` to paint ([`PaintTags`]) where `labels` shows a tag, on a board with tags.
+    pub fn has_tags_to_paint(
+        &self,
+        rect: Rect,
+        labels: &Mask,
+        fill: &Mask,
+        which: PaintTags,
+    ) -> bool {
         let w = fill.width() as usize;
         let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
         let (lab, f) = (labels.as_slice(), fill.as_slice());
         !self.prints.is_empty()
             && (rect.y as usize..(rect.y + rect.height) as usize)
-                .any(|y| (y * w + x0..y * w + x1).any(|i| lab[i] == TAG && f[i] == Mask::SET))
+                .any(|y| (y * w + x0..y * w + x1).any(|i| lab[i] == TAG && which.paints(f[i])))
     }
 
     /// Paints the board's known print into the pixels of `fill` (set, not hidden) that show a
@@ -180,14 +203,15 @@ impl BoardSurfaces {
         labels: &Mask,
         image: &mut [u8],
         fill: &mut Mask,
+        which: PaintTags,
     ) -> usize {
         let w = fill.width() as usize;
         let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
         let rows = rect.y as usize..(rect.y + rect.height) as usize;
         let lab = labels.as_slice();
-        let to_paint = |i: usize, f: u8| lab[i] == TAG && f == Mask::SET;
+        let to_paint = |i: usize, f: u8| lab[i] == TAG && which.paints(f);
         // Nothing to paint: no need to measure the levels.
-        if !self.has_tags_to_paint(rect, labels, fill) {
+        if !self.has_tags_to_paint(rect, labels, fill, which) {
             return 0;
         }
         let plane = PlaneRays::new(camera, camera_from_marker);
@@ -686,20 +710,52 @@ mod tests {
                 [v, v, v, 255]
             })
             .collect();
-        // The right half of the tag is hidden (painted magenta) and to fill.
+        // The right half of the tag is hidden (painted magenta) and to fill; a strip of it is
+        // under the twin's opaque interior (the fill mask's hidden pixels).
         let mut fill = Mask::zeros(200, 200).expect("mask");
         for y in 60..140 {
             for x in 100..140 {
-                fill.as_mut_slice()[y * 200 + x] = Mask::SET;
+                let hidden = (80..90).contains(&y);
+                fill.as_mut_slice()[y * 200 + x] = if hidden { Mask::HIDDEN } else { Mask::SET };
                 image[(y * 200 + x) * 4..(y * 200 + x) * 4 + 3].copy_from_slice(&[250, 0, 200]);
             }
         }
+        let hidden_tag = |labels: &Mask, fill: &Mask| {
+            (0..200 * 200)
+                .filter(|&i| labels.as_slice()[i] == TAG && fill.as_slice()[i] == Mask::HIDDEN)
+                .count()
+        };
         let s = BoardSurfaces::new(&board, Some(0.1));
         let rect = Rect::from_inclusive(40, 40, 159, 159);
         let mut labels = Mask::zeros(200, 200).expect("labels");
         s.label(&cam, pose, rect, &mut labels);
         let before = fill.clone();
-        let n = s.paint_tags(&cam, pose, rect, &labels, &mut image, &mut fill);
+        // The fill's set pixels only: the hidden ones stay hidden and unpainted...
+        let (mut only_set, mut img_set) = (fill.clone(), image.clone());
+        let n_set = s.paint_tags(
+            &cam,
+            pose,
+            rect,
+            &labels,
+            &mut img_set,
+            &mut only_set,
+            PaintTags::Set,
+        );
+        let under_twin = hidden_tag(&labels, &before);
+        assert!(under_twin >= 200, "{under_twin} hidden tag pixels");
+        assert_eq!(hidden_tag(&labels, &only_set), under_twin);
+        // ... and with them, the tag under the twin is painted too.
+        let n = s.paint_tags(
+            &cam,
+            pose,
+            rect,
+            &labels,
+            &mut image,
+            &mut fill,
+            PaintTags::SetAndHidden,
+        );
+        assert_eq!(hidden_tag(&labels, &fill), 0);
+        assert_eq!(n, n_set + under_twin);
         let (mut close, mut total, mut err) = (0usize, 0usize, 0.0f64);
         for i in 0..200 * 200 {
             if before.as_slice()[i] == 0 || fill.as_slice()[i] != 0 {
