@@ -270,6 +270,13 @@ fn json_lines(text: &str) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// `track IMG --calib CALIB --tag-size-m 0.08` with `extra` arguments after them.
+fn track_calibrated(img: &Path, calib: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["track", s(img), "--calib", s(calib), "--tag-size-m", "0.08"];
+    args.extend_from_slice(extra);
+    propsalive(&args)
+}
+
 /// `track` on the one-tag shot `img` (`frame(true, 3)`, tag 3 of 0.08 m) seen by `calib`,
 /// with `flag value` added and the log written to `log`: the log's lines (the run must
 /// succeed).
@@ -280,20 +287,7 @@ fn track_one_tag_with(
     value: &str,
     log: &Path,
 ) -> Vec<serde_json::Value> {
-    let o = propsalive(&[
-        "track",
-        s(img),
-        "--calib",
-        s(calib),
-        "--tag-size-m",
-        "0.08",
-        "--id",
-        "3",
-        flag,
-        value,
-        "--out-log",
-        s(log),
-    ]);
+    let o = track_calibrated(img, calib, &["--id", "3", flag, value, "--out-log", s(log)]);
     assert!(o.status.success(), "{flag} {value}: {}", stderr(&o));
     json_lines(&std::fs::read_to_string(log).expect("log"))
 }
@@ -375,16 +369,7 @@ fn track_corners_flag_selects_how_corners_are_refined() {
         assert!((c0[0].as_f64().unwrap() - 239.5).abs() < 0.1, "{how}: {c0}");
         assert!((c0[1].as_f64().unwrap() - 159.5).abs() < 0.1, "{how}: {c0}");
     }
-    let o = propsalive(&[
-        "track",
-        s(&img),
-        "--calib",
-        s(&calib),
-        "--tag-size-m",
-        "0.08",
-        "--corners",
-        "gamma",
-    ]);
+    let o = track_calibrated(&img, &calib, &["--corners", "gamma"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("srgb, linear, off"), "{}", stderr(&o));
 }
@@ -417,14 +402,7 @@ fn track_folder_natural_order_skips_a_corrupt_frame() {
     std::fs::write(frames.join("notes.txt"), b"ignored").expect("write");
     let calib = dir.path().join("cam.yaml");
     write_calib(&calib, 640, 480, 500.0);
-    let o = propsalive(&[
-        "track",
-        s(&frames),
-        "--calib",
-        s(&calib),
-        "--tag-size-m",
-        "0.08",
-    ]);
+    let o = track_calibrated(&frames, &calib, &[]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(
@@ -486,7 +464,7 @@ fn track_reports_broken_calibration_files_by_file_and_field() {
     ] {
         let p = dir.path().join(name);
         std::fs::write(&p, text).expect("write");
-        let o = propsalive(&["track", s(&img), "--calib", s(&p), "--tag-size-m", "0.08"]);
+        let o = track_calibrated(&img, &p, &[]);
         let err = stderr(&o);
         println!("{name}: {err}");
         assert!(!o.status.success(), "{name}");
@@ -494,14 +472,7 @@ fn track_reports_broken_calibration_files_by_file_and_field() {
         assert!(err.contains(field), "{name}: {err}");
     }
     let p = dir.path().join("short.yaml");
-    let err = stderr(&propsalive(&[
-        "track",
-        s(&img),
-        "--calib",
-        s(&p),
-        "--tag-size-m",
-        "0.08",
-    ]));
+    let err = stderr(&track_calibrated(&img, &p, &[]));
     assert!(err.contains("wrong size"), "{err}");
 }
 
@@ -513,14 +484,7 @@ fn track_scales_intrinsics_for_same_aspect_and_refuses_other_aspect() {
     // Calibrated at 1280x960 with f = 1000: the same camera as f = 500 at 640x480.
     let calib = dir.path().join("cam_1280.yaml");
     write_calib(&calib, 1280, 960, 1000.0);
-    let o = propsalive(&[
-        "track",
-        s(&img),
-        "--calib",
-        s(&calib),
-        "--tag-size-m",
-        "0.08",
-    ]);
+    let o = track_calibrated(&img, &calib, &[]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("scaling the intrinsics"), "{err}");
@@ -533,14 +497,7 @@ fn track_scales_intrinsics_for_same_aspect_and_refuses_other_aspect() {
 
     let calib = dir.path().join("cam_wide.yaml");
     write_calib(&calib, 1280, 720, 1000.0);
-    let o = propsalive(&[
-        "track",
-        s(&img),
-        "--calib",
-        s(&calib),
-        "--tag-size-m",
-        "0.08",
-    ]);
+    let o = track_calibrated(&img, &calib, &[]);
     let err = stderr(&o);
     assert!(!o.status.success());
     assert!(
@@ -615,17 +572,7 @@ fn track_fast_tracking_finds_the_same_pose_and_refuses_thorough() {
     }
     assert!((t_fast[2] - 0.25).abs() < 0.002, "{t_fast:?}");
 
-    let o = propsalive(&[
-        "track",
-        s(&img),
-        "--calib",
-        s(&calib),
-        "--tag-size-m",
-        "0.08",
-        "--tracking",
-        "fast",
-        "--thorough",
-    ]);
+    let o = track_calibrated(&img, &calib, &["--tracking", "fast", "--thorough"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--thorough"), "{}", stderr(&o));
 }
