@@ -126,11 +126,11 @@ pub fn texels_per_metre(
     tex_size: (u32, u32),
 ) -> Vec<f32> {
     let n = positions.len();
-    let (tw, th) = (tex_size.0 as f32, tex_size.1 as f32);
-    let mut sum = vec![(0.0f32, 0u32); n];
     if uvs.len() != n {
         return vec![0.0; n];
     }
+    let (tw, th) = (tex_size.0 as f32, tex_size.1 as f32);
+    let mut sum = vec![(0.0f32, 0u32); n];
     for t in indices.chunks_exact(3) {
         for k in 0..3 {
             let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
@@ -277,7 +277,8 @@ impl VertexMemory {
                     0.0
                 }
             };
-            let resolution = cam.fx / pc.z / 1000.0;
+            let pixels_per_m = cam.fx / pc.z;
+            let resolution = pixels_per_m / 1000.0;
             let margin = if p.visibility {
                 visibility_margin(key_depth, &p, pc)
             } else {
@@ -285,7 +286,7 @@ impl VertexMemory {
             };
             let w = cos * resolution * margin;
             let rgb = frame.sample_linear(pixel[0], pixel[1], lut);
-            let a = albedo.at(i, resolution * 1000.0);
+            let a = albedo.at(i, pixels_per_m);
             Some((std::array::from_fn(|c| rgb[c] / a[c].max(MIN_ALBEDO)), w))
         };
         // Vertices are independent: each one sampled and added in the same pass.

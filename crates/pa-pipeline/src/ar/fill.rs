@@ -171,7 +171,7 @@ fn paint_known_tags<'s>(
         return (Some(labels), false);
     };
     let img = background.as_mut_slice();
-    let painted = s.paint_tags(camera, pose, work, labels, img, m, which) > 0;
+    let painted = s.paint_tags_found(camera, pose, work, labels, img, m, which) > 0;
     (Some(labels), painted)
 }
 

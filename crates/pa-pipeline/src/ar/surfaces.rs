@@ -186,8 +186,8 @@ impl BoardSurfaces {
                 .any(|y| (y * w + x0..y * w + x1).any(|i| lab[i] == TAG && which.paints(f[i])))
     }
 
-    /// Paints the board's known print into the pixels of `fill` (set, not hidden) that show a
-    /// tag (`labels` == [`TAG`]) in `rect`, and clears them in `fill`: a covered tag is
+    /// Paints the board's known print into the pixels of `fill` that `which` names and that
+    /// show a tag (`labels` == [`TAG`]) in `rect`, and clears them in `fill`: a covered tag is
     /// redrawn from its pattern, not invented. Each pixel is the mean of 2x2 samples of the
     /// pattern (back-projected onto the marker plane), mapped to this frame's black and white
     /// as measured on the known pixels of the tags in `rect` (mean colour of the known tag
@@ -205,15 +205,31 @@ impl BoardSurfaces {
         fill: &mut Mask,
         which: PaintTags,
     ) -> usize {
+        // Nothing to paint: no need to measure the levels.
+        if !self.has_tags_to_paint(rect, labels, fill, which) {
+            return 0;
+        }
+        self.paint_tags_found(camera, camera_from_marker, rect, labels, image, fill, which)
+    }
+
+    /// [`BoardSurfaces::paint_tags`] once [`BoardSurfaces::has_tags_to_paint`] said yes (the
+    /// pipeline asks first, to copy the fill mask only when something will be painted).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn paint_tags_found(
+        &self,
+        camera: &CameraModel,
+        camera_from_marker: Mat4,
+        rect: Rect,
+        labels: &Mask,
+        image: &mut [u8],
+        fill: &mut Mask,
+        which: PaintTags,
+    ) -> usize {
         let w = fill.width() as usize;
         let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
         let rows = rect.y as usize..(rect.y + rect.height) as usize;
         let lab = labels.as_slice();
         let to_paint = |i: usize, f: u8| lab[i] == TAG && which.paints(f);
-        // Nothing to paint: no need to measure the levels.
-        if !self.has_tags_to_paint(rect, labels, fill, which) {
-            return 0;
-        }
         let plane = PlaneRays::new(camera, camera_from_marker);
         let on_plane = |x: f64, y: f64| plane.point(x, y);
         // The fraction of white at pixel (x, y): 2x2 samples.
@@ -229,8 +245,7 @@ impl BoardSurfaces {
         };
         // Levels from the known tag pixels (pure black or pure white samples only) on a grid
         // of every other pixel of every other row or coarser (LEVEL_GRID_POINTS), rows in
-        // parallel. The sums are of bytes: exact in
-        // any order.
+        // parallel. The sums are of bytes: exact in any order.
         type Levels = ([f64; 3], usize);
         let add = |a: Levels, b: Levels| {
             (
