@@ -210,6 +210,9 @@ pub struct CpuRenderer {
     mesh_bases: Vec<u32>,
     /// Camera-space positions of the key pose and their pixels.
     camera_positions: Vec<(Vec3, Option<[f64; 2]>)>,
+    /// The relighting ratio at each of `vertices` (empty without relighting;
+    /// [`crate::shade::relight_at_vertices`]).
+    vertex_relight: Vec<[f32; 3]>,
     image: CpuTwinImage,
 }
 
@@ -343,7 +346,15 @@ impl CpuRenderer {
             return &self.image;
         };
         self.image.rect = Some(rect);
+        crate::shade::relight_at_vertices(
+            &self.vertices,
+            &self.mesh_bases,
+            meshes,
+            shading,
+            &mut self.vertex_relight,
+        );
         let ctx = ShadeContext {
+            vertex_relight: &self.vertex_relight,
             setups: &self.setups,
             tris: &self.tris,
             vertices: &self.vertices,
@@ -473,22 +484,28 @@ mod tests {
     /// The two halves of `render_twin`: `beside` sees the key depth and its result comes
     /// back; shading the same meshes gives `render_twin`'s image, shading without them (a
     /// caller's mistake) leaves the twin empty instead of panicking.
-    #[test]
-    fn rasterise_beside_then_shade_equals_render_twin() {
+    /// A 64x48 camera, f = 60 px, principal point `(cx, cy)`, and a triangle 1 m in front of
+    /// it, 0.6 m wide.
+    fn camera_and_triangle(cx: f64, cy: f64) -> (pa_camera::Intrinsics, RasterCamera, [Vec3; 3]) {
         let k = pa_camera::Intrinsics {
             fx: 60.0,
             fy: 60.0,
-            cx: 31.5,
-            cy: 23.5,
+            cx,
+            cy,
             width: 64,
             height: 48,
         };
-        let camera = RasterCamera::new(&k, 0.01, 10.0);
         let positions = [
             Vec3::new(-0.3, -0.3, 1.0),
             Vec3::new(0.3, -0.3, 1.0),
             Vec3::new(0.0, 0.3, 1.0),
         ];
+        (k, RasterCamera::new(&k, 0.01, 10.0), positions)
+    }
+
+    #[test]
+    fn rasterise_beside_then_shade_equals_render_twin() {
+        let (_, camera, positions) = camera_and_triangle(31.5, 23.5);
         let mesh = CpuPosedMesh {
             positions_world: &positions,
             normals_world: &[],
@@ -520,5 +537,83 @@ mod tests {
         three.rasterise_twin_beside(&camera, Mat4::IDENTITY, &meshes, false, |_| ());
         let empty = three.shade_twin(&[], &Shading::Albedo);
         assert!(empty.rgba8.iter().all(|&v| v == 0));
+    }
+
+    /// The relighting ratio is the vertices' ratios interpolated on a triangle's front side
+    /// (`relight_at_vertices`, as `live.wgsl`'s vertex stage) and computed per pixel from the
+    /// flipped normal on its back side. One triangle facing the camera, its key normals
+    /// toward the camera and its in-between normals tilted 64 degrees three ways, under a sun
+    /// behind the camera: at the centroid the interpolated ratio is 0.61 where the ratio of
+    /// the interpolated normal would be 0.88, and the back side gets the ambient's 0.3.
+    #[test]
+    fn relighting_ratio_is_the_vertices_on_the_front_and_per_pixel_on_the_back() {
+        use crate::sun::SunLight;
+        use crate::{FrameCamera, FrameSampler, LiveParams};
+        // Pixels (14, 6), (50, 6), (32, 42): the centroid is pixel (32, 18).
+        let (k, camera, positions) = camera_and_triangle(32.0, 24.0);
+        let anim_normals = [
+            Vec3::new(0.9, 0.0, -0.44),
+            Vec3::new(-0.9, 0.0, -0.44),
+            Vec3::new(0.0, 0.9, -0.44),
+        ];
+        let key_normals = [Vec3::NEG_Z; 3];
+        let sun_lit = [[1.0f32; 2]; 3];
+        let sun = SunLight {
+            toward_light: Vec3::NEG_Z,
+            ambient_rgb: [0.3; 3],
+            direct_rgb: [0.7; 3],
+        };
+        let grey = vec![128u8; 64 * 48 * 4];
+        let frame = FrameSampler::new(64, 48, &grey).expect("frame");
+        let mut params = LiveParams::new(FrameCamera::new(&pa_camera::CameraModel::pinhole(k)));
+        params.relight = true;
+        params.sun = Some(sun);
+        let shading = Shading::Live { frame, params };
+        let centroid = |indices: &[u32; 3]| -> u8 {
+            let mesh = CpuPosedMesh {
+                positions_world: &positions,
+                normals_world: &anim_normals,
+                uvs: &[],
+                indices,
+                albedo: None,
+                base_color_factor: [1.0; 4],
+                mirrored: false,
+                cull_back_faces: false,
+            };
+            let meshes = [CpuLiveMesh {
+                mesh,
+                key_positions_world: &positions,
+                key_normals_world: &key_normals,
+                memory: &[],
+                sun_lit: &sun_lit,
+            }];
+            let mut r = CpuRenderer::new();
+            let image = r.render_twin(&camera, Mat4::IDENTITY, &meshes, &shading);
+            let i = 18 * 64 + 32;
+            assert_eq!(image.codes[i], crate::live::code::VALID);
+            image.rgba8[i * 4]
+        };
+        let grey_linear = crate::srgb::srgb_to_linear(128);
+        let at_vertex = sun.relight_factor(Vec3::NEG_Z, 1.0, anim_normals[0].normalize(), 1.0)[0];
+        let mean_normal = (anim_normals[0] + anim_normals[1] + anim_normals[2]).normalize();
+        let per_pixel = sun.relight_factor(Vec3::NEG_Z, 1.0, mean_normal, 1.0)[0];
+        let back = sun.relight_factor(Vec3::NEG_Z, 1.0, -mean_normal, 1.0)[0];
+        assert!((at_vertex - 0.607).abs() < 0.01, "{at_vertex}");
+        assert!((per_pixel - 0.878).abs() < 0.01, "{per_pixel}");
+        assert!((back - 0.3).abs() < 1e-6, "{back}");
+        let want = |ratio: f32| i32::from(crate::srgb::linear_to_srgb(grey_linear * ratio));
+        // (0, 2, 1) winds counter-clockwise on screen: the front side faces the camera.
+        let front = i32::from(centroid(&[0, 2, 1]));
+        assert!(
+            (front - want(at_vertex)).abs() <= 1,
+            "{front} vs {}",
+            want(at_vertex)
+        );
+        let back_side = i32::from(centroid(&[0, 1, 2]));
+        assert!(
+            (back_side - want(back)).abs() <= 1,
+            "{back_side} vs {}",
+            want(back)
+        );
     }
 }

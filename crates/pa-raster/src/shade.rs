@@ -3,7 +3,10 @@
 //! feathered blend with the lit fallback and the remembered colour, exactly as `live.wgsl`.
 //! Each quantity is computed at most once per pixel, and only where the pixel's colour needs
 //! it (the fallback's normal, sunlight fraction and remembered colour only where the live
-//! sample is missing or partly trusted).
+//! sample is missing or partly trusted). The relighting ratio `E(n_anim) / E(n_key)` is
+//! computed once per vertex ([`relight_at_vertices`]) and interpolated, as `live.wgsl`'s
+//! vertex stage does; a triangle seen from its back (its normal flipped) computes it per
+//! pixel.
 //!
 //! [`CpuRenderer::render_twin`]: crate::CpuRenderer::render_twin
 
@@ -63,8 +66,64 @@ fn fast_log2(x: f32) -> f32 {
     exponent as f32 + m * (1.423_485_3 + m * (-0.587_733_8 + m * 0.165_558_8))
 }
 
+/// The relighting ratio `E(n_anim) / E(n_key)` ([`SunLight::relight_factor`] with the
+/// vertex's sunlight fractions, or [`look::relight_factor`] with the first-order light) at
+/// each of `vertices`, into `out` (emptied when `shading` does not relight). `mesh_bases`
+/// gives each mesh's first vertex, `meshes` their `sun_lit`. The ratio of the vertices'
+/// unflipped normals: the one of a triangle's front side.
+///
+/// Per vertex, not per pixel: it costs 8k evaluations instead of one per covered pixel
+/// (60-80k for the generated bust at 1280x720), and the interpolated ratio measured the same
+/// (prop PSNR within 0.03 dB on the generated scene and Cycles' bust and CesiumMan).
+///
+/// [`SunLight::relight_factor`]: crate::sun::SunLight::relight_factor
+pub(crate) fn relight_at_vertices(
+    vertices: &[Vertex],
+    mesh_bases: &[u32],
+    meshes: &[CpuLiveMesh<'_>],
+    shading: &Shading<'_>,
+    out: &mut Vec<[f32; 3]>,
+) {
+    use rayon::prelude::*;
+    out.clear();
+    let params = match shading {
+        Shading::Live { params, .. } if params.relight => params,
+        _ => return,
+    };
+    out.par_extend(
+        (0..vertices.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let v = &vertices[i];
+                let n = v.anim_normal_world.normalize_or_zero();
+                let nk = v.key_normal_world.normalize_or_zero();
+                match &params.sun {
+                    Some(sun) => {
+                        // The mesh of vertex i: the last whose first vertex is at most i.
+                        let m = mesh_bases
+                            .partition_point(|&b| b as usize <= i)
+                            .saturating_sub(1);
+                        let lit = match (meshes.get(m), mesh_bases.get(m)) {
+                            (Some(mesh), Some(&base)) => mesh
+                                .sun_lit
+                                .get(i - base as usize)
+                                .copied()
+                                .unwrap_or([1.0; 2]),
+                            _ => [1.0; 2],
+                        };
+                        sun.relight_factor(nk, lit[0], n, lit[1])
+                    }
+                    None => look::relight_factor(&params.fallback_irradiance, nk, n),
+                }
+            }),
+    );
+}
+
 /// What the fragment stage reads: the frame's set-ups, triangles and vertices.
 pub(crate) struct ShadeContext<'a> {
+    /// [`relight_at_vertices`] of `vertices` (empty: relit per pixel, or not at all).
+    pub vertex_relight: &'a [[f32; 3]],
     pub setups: &'a [Option<TriSetup>],
     pub tris: &'a [Tri],
     pub vertices: &'a [Vertex],
@@ -303,15 +362,14 @@ impl ShadeContext<'_> {
         // Relighting from the key pose's normal to the in-between's, for what was seen in the
         // key pose: the live sample, and the remembered colour.
         let relight = params.relight && (valid || memory[3] > 0.0);
+        // The triangle's back side: its normal flipped, its ratio not the vertices'.
+        let flipped = f.s.ccw_on_screen == mesh.mirrored;
+        let ratio_at_vertices = !flipped && !self.vertex_relight.is_empty();
         // Each of these at most once per pixel.
-        let (normal, lit) = if relight || fallback {
+        let (normal, lit) = if fallback || (relight && !ratio_at_vertices) {
             // Without vertex normals n is zero and the irradiance is its constant term.
             let n = f.lerp3(|v| v.anim_normal_world).normalize_or_zero();
-            let n = if f.s.ccw_on_screen == mesh.mirrored {
-                -n
-            } else {
-                n
-            };
+            let n = if flipped { -n } else { n };
             let lit: [f32; 2] = match params.sun {
                 Some(_) => self.sun_lit(f),
                 None => [1.0; 2],
@@ -320,7 +378,11 @@ impl ShadeContext<'_> {
         } else {
             (Vec3::ZERO, [1.0; 2])
         };
-        let factor = if relight {
+        let factor = if relight && ratio_at_vertices {
+            let [a, b, c] = f.t.v.map(|i| self.vertex_relight[i as usize]);
+            let [b0, b1, b2] = f.b;
+            std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
+        } else if relight {
             let nk = f.lerp3(|v| v.key_normal_world).normalize_or_zero();
             match &params.sun {
                 Some(sun) => sun.relight_factor(nk, lit[0], normal, lit[1]),

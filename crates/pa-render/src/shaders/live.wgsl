@@ -86,6 +86,9 @@ struct LiveVsOut {
     @location(8) key_normal_world: vec3<f32>,
     // Fraction of the sun received (key pose, animated pose), interpolated.
     @location(9) sun_lit: vec2<f32>,
+    // The relighting ratio E(n_anim) / E(n_key) at the vertex (its unflipped normals),
+    // interpolated: the ratio of a triangle's front side (pa_raster's relight_at_vertices).
+    @location(10) relight_ratio: vec3<f32>,
 }
 
 @vertex
@@ -131,6 +134,14 @@ fn vs_live(@builtin(vertex_index) vid: u32) -> LiveVsOut {
         out.anim_normal_camera = transform_normal(
             mat3x3<f32>(c[0].xyz, c[1].xyz, c[2].xyz),
             skinned.normal_world,
+        );
+    }
+    out.relight_ratio = vec3<f32>(1.0);
+    if (live.flags.x == 1u && live.stretch.y == 1.0) {
+        out.relight_ratio = relight_ratio(
+            unit_or_zero(skinned.normal_world),
+            unit_or_zero(out.key_normal_world),
+            out.sun_lit,
         );
     }
     return out;
@@ -223,6 +234,24 @@ fn sun_irradiance(n: vec3<f32>, lit: f32) -> vec3<f32> {
     let cos = select(max(dot(n, live.sun_toward_light.xyz), 0.0), 0.5, dot(n, n) == 0.0);
     let e = live.sun_ambient.rgb + live.sun_direct.rgb * (clamp(lit, 0.0, 1.0) * cos);
     return max(e, vec3<f32>(MIN_IRRADIANCE));
+}
+
+// The relighting ratio E(n_anim) / E(n_key), clamped, of unit world-space normals (zero: none),
+// with the fractions of the sun received (key pose, animated pose) when the sun is on
+// (pa_raster::sun::SunLight::relight_factor, pa_raster::look::relight_factor).
+fn relight_ratio(n_anim: vec3<f32>, n_key: vec3<f32>, sun_lit: vec2<f32>) -> vec3<f32> {
+    if (live.flags.w == 1u) {
+        return clamp(
+            sun_irradiance(n_anim, sun_lit.y) / sun_irradiance(n_key, sun_lit.x),
+            vec3<f32>(SUN_RELIGHT_MIN),
+            vec3<f32>(SUN_RELIGHT_MAX),
+        );
+    }
+    return clamp(
+        irradiance(n_anim) / irradiance(n_key),
+        vec3<f32>(RELIGHT_MIN),
+        vec3<f32>(RELIGHT_MAX),
+    );
 }
 
 // Cosine between a normal and the direction from the point to the camera (at the origin).
@@ -357,7 +386,9 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
         );
         code = lookup.code;
         var n = unit_or_zero(in.normal_world);
-        if (front_facing == (draw.flags.x == 1u)) {
+        // The triangle's back side: its normal flipped, its ratio not the vertices'.
+        let flipped = front_facing == (draw.flags.x == 1u);
+        if (flipped) {
             n = -n;
         }
         // The remembered colour first, the lit model texture where the memory is unsure.
@@ -372,19 +403,10 @@ fn fs_live(in: LiveVsOut, @builtin(front_facing) front_facing: bool) -> LiveFsOu
         let relight = live.stretch.y == 1.0;
         var ratio = vec3<f32>(1.0);
         if (relight) {
-            let nk = unit_or_zero(in.key_normal_world);
-            if (sun) {
-                ratio = clamp(
-                    e_anim / sun_irradiance(nk, in.sun_lit.x),
-                    vec3<f32>(SUN_RELIGHT_MIN),
-                    vec3<f32>(SUN_RELIGHT_MAX),
-                );
+            if (flipped) {
+                ratio = relight_ratio(n, unit_or_zero(in.key_normal_world), in.sun_lit);
             } else {
-                ratio = clamp(
-                    e_anim / irradiance(nk),
-                    vec3<f32>(RELIGHT_MIN),
-                    vec3<f32>(RELIGHT_MAX),
-                );
+                ratio = in.relight_ratio;
             }
         }
         // The remembered gain over the model's albedo (pa_raster::memory::remembered_or).
