@@ -254,22 +254,24 @@ impl ShadeContext<'_> {
         frame: &FrameSampler<'_>,
         params: &LiveParams,
     ) -> (u8, [u8; 4]) {
-        let [pc, nc, pa, na] = f.lookup_inputs();
+        let inputs = f.lookup_inputs();
+        let [pc, nc, pa, na] = inputs;
         let looked = live_lookup_weighted(params, self.key, pc, nc, pa, na);
-        self.live_pixel(f, frame, params, looked)
+        self.live_pixel(f, frame, params, &inputs, looked)
     }
 
-    /// The code and sRGB RGBA8 of a live-textured fragment given its look-up
-    /// `(code, frame pixel, weight)`.
+    /// The code and sRGB RGBA8 of a live-textured fragment given its look-up's inputs
+    /// ([`Fragment::lookup_inputs`]) and result `(code, frame pixel, weight)`.
     #[inline(always)]
     fn live_pixel(
         &self,
         f: &Fragment<'_>,
         frame: &FrameSampler<'_>,
         params: &LiveParams,
+        inputs: &LookupInputs,
         (code, pixel, weight): (u8, [f32; 2], f32),
     ) -> (u8, [u8; 4]) {
-        let (rgb, a) = self.live_colour(f, frame, params, code, pixel, weight);
+        let (rgb, a) = self.live_colour(f, frame, params, inputs, code, pixel, weight);
         (code, self.encode(rgb, a))
     }
 
@@ -324,9 +326,9 @@ impl ShadeContext<'_> {
                 None => [Vec3::ZERO; 4],
             });
             let looked = live_lookup_weighted4(params, self.key, &inputs);
-            for ((x, f), looked) in group.iter().zip(looked) {
+            for (((x, f), looked), inputs) in group.iter().zip(looked).zip(&inputs) {
                 if let Some(f) = f {
-                    put(*x, self.live_pixel(f, frame, params, looked));
+                    put(*x, self.live_pixel(f, frame, params, inputs, looked));
                 }
             }
         }
@@ -337,13 +339,15 @@ impl ShadeContext<'_> {
         }
     }
 
-    /// The live-textured colour (linear) and alpha of a fragment given its look-up.
+    /// The live-textured colour (linear) and alpha of a fragment given its look-up's inputs
+    /// and result.
     #[inline(always)]
     fn live_colour(
         &self,
         f: &Fragment<'_>,
         frame: &FrameSampler<'_>,
         params: &LiveParams,
+        inputs: &LookupInputs,
         code: u8,
         pixel: [f32; 2],
         weight: f32,
@@ -394,7 +398,7 @@ impl ShadeContext<'_> {
         // The reflection at grazing angles, at the key pose and the in-between (look.rs).
         let grazing = params.relight && params.grazing_rgb != [0.0; 3];
         let (g_key, g_anim) = if grazing {
-            let [pc, nc, pa, na] = f.lookup_inputs();
+            let [pc, nc, pa, na] = *inputs;
             (look::grazing(pc, nc), look::grazing(pa, na))
         } else {
             (0.0, 0.0)
