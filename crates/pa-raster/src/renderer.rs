@@ -481,9 +481,6 @@ impl TwinBuffers<'_> {
 mod tests {
     use super::*;
 
-    /// The two halves of `render_twin`: `beside` sees the key depth and its result comes
-    /// back; shading the same meshes gives `render_twin`'s image, shading without them (a
-    /// caller's mistake) leaves the twin empty instead of panicking.
     /// A 64x48 camera, f = 60 px, principal point `(cx, cy)`, and a triangle 1 m in front of
     /// it, 0.6 m wide.
     fn camera_and_triangle(cx: f64, cy: f64) -> (pa_camera::Intrinsics, RasterCamera, [Vec3; 3]) {
@@ -503,6 +500,9 @@ mod tests {
         (k, RasterCamera::new(&k, 0.01, 10.0), positions)
     }
 
+    /// The two halves of `render_twin`: `beside` sees the key depth and its result comes
+    /// back; shading the same meshes gives `render_twin`'s image, shading without them (a
+    /// caller's mistake) leaves the twin empty instead of panicking.
     #[test]
     fn rasterise_beside_then_shade_equals_render_twin() {
         let (_, camera, positions) = camera_and_triangle(31.5, 23.5);
