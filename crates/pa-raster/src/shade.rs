@@ -98,26 +98,43 @@ pub(crate) fn relight_at_vertices(
                 let v = &vertices[i];
                 let n = v.anim_normal_world.normalize_or_zero();
                 let nk = v.key_normal_world.normalize_or_zero();
-                match &params.sun {
-                    Some(sun) => {
+                let lit = match params.sun {
+                    Some(_) => {
                         // The mesh of vertex i: the last whose first vertex is at most i.
                         let m = mesh_bases
                             .partition_point(|&b| b as usize <= i)
                             .saturating_sub(1);
-                        let lit = match (meshes.get(m), mesh_bases.get(m)) {
+                        match (meshes.get(m), mesh_bases.get(m)) {
                             (Some(mesh), Some(&base)) => mesh
                                 .sun_lit
                                 .get(i - base as usize)
                                 .copied()
                                 .unwrap_or([1.0; 2]),
                             _ => [1.0; 2],
-                        };
-                        sun.relight_factor(nk, lit[0], n, lit[1])
+                        }
                     }
-                    None => look::relight_factor(&params.fallback_irradiance, nk, n),
-                }
+                    None => [1.0; 2],
+                };
+                relight_ratio(params, nk, n, lit)
             }),
     );
+}
+
+/// The relighting ratio `E(n_anim) / E(n_key)` of unit world-space normals (zero: none),
+/// with the sunlight fractions `[key pose, in-between]` when `params` has a sun; the
+/// first-order light's otherwise (`live.wgsl`'s `relight_ratio`).
+#[inline]
+fn relight_ratio(params: &LiveParams, n_key: Vec3, n_anim: Vec3, lit: [f32; 2]) -> [f32; 3] {
+    match &params.sun {
+        Some(sun) => sun.relight_factor(n_key, lit[0], n_anim, lit[1]),
+        None => look::relight_factor(&params.fallback_irradiance, n_key, n_anim),
+    }
+}
+
+/// `b0 a + b1 b + b2 c` per component: a per-vertex value at a pixel with barycentrics `b`.
+#[inline(always)]
+fn blend<const N: usize>([a, b, c]: [[f32; N]; 3], [b0, b1, b2]: [f32; 3]) -> [f32; N] {
+    std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
 }
 
 /// What the fragment stage reads: the frame's set-ups, triangles and vertices.
@@ -156,9 +173,7 @@ impl Fragment<'_> {
     /// `N` interpolated scalars.
     #[inline(always)]
     fn lerp<const N: usize>(&self, f: impl Fn(&Vertex) -> [f32; N]) -> [f32; N] {
-        let ([va, vb, vc], [b0, b1, b2]) = (self.v, self.b);
-        let (a, b, c) = (f(va), f(vb), f(vc));
-        std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
+        blend(self.v.map(f), self.b)
     }
 
     /// The inputs of the live look-up: key-pose point and normal, animated point and normal.
@@ -219,8 +234,7 @@ impl ShadeContext<'_> {
             let i = f.t.v[k].wrapping_sub(base) as usize;
             mesh.sun_lit.get(i).copied().unwrap_or([1.0; 2])
         };
-        let ([a, b, c], [b0, b1, b2]) = ([at(0), at(1), at(2)], f.b);
-        std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
+        blend([at(0), at(1), at(2)], f.b)
     }
 
     /// sRGB RGBA8 of a linear colour and alpha.
@@ -383,15 +397,10 @@ impl ShadeContext<'_> {
             (Vec3::ZERO, [1.0; 2])
         };
         let factor = if relight && ratio_at_vertices {
-            let [a, b, c] = f.t.v.map(|i| self.vertex_relight[i as usize]);
-            let [b0, b1, b2] = f.b;
-            std::array::from_fn(|k| a[k] * b0 + b[k] * b1 + c[k] * b2)
+            blend(f.t.v.map(|i| self.vertex_relight[i as usize]), f.b)
         } else if relight {
             let nk = f.lerp3(|v| v.key_normal_world).normalize_or_zero();
-            match &params.sun {
-                Some(sun) => sun.relight_factor(nk, lit[0], normal, lit[1]),
-                None => look::relight_factor(&params.fallback_irradiance, nk, normal),
-            }
+            relight_ratio(params, nk, normal, lit)
         } else {
             [1.0; 3]
         };
