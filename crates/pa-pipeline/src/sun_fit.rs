@@ -238,7 +238,18 @@ pub fn direction_on_key_pose(
     key: &[(&[Vec3], &[u32])],
 ) -> Vec3 {
     let first = refine_direction(samples, &[], start, 0.3);
-    let map = ShadowMap::new(first, key);
+    refine_in_shadow(samples, first, &ShadowMap::new(first, key))
+}
+
+/// [`direction_on_key_pose`] with a shadow map of the key pose made earlier (along a
+/// direction near the sun's, see `ar::sun::SunTrack`) instead of one along the frame's first
+/// refinement.
+pub fn direction_in_key_shadow(samples: &[IrradianceSample], start: Vec3, key: &ShadowMap) -> Vec3 {
+    refine_in_shadow(samples, refine_direction(samples, &[], start, 0.3), key)
+}
+
+/// [`refine_direction`] from `first` with each sample's shadowing read from `map`.
+fn refine_in_shadow(samples: &[IrradianceSample], first: Vec3, map: &ShadowMap) -> Vec3 {
     let lit: Vec<f32> = samples
         .iter()
         .map(|s| map.lit(s.position_world, s.normal_world))
