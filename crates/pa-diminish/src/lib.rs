@@ -156,6 +156,22 @@ impl Diminisher {
         bbox: Rect,
         method: &FillMethod<'_>,
     ) -> Result<FillStats, DiminishError> {
+        self.fill_in_bbox_on(frame, mask, bbox, method, None)
+    }
+
+    /// [`Diminisher::fill_in_bbox`] on a set whose surfaces are known: `surfaces` gives each
+    /// frame pixel a label (valid within 2 pixels of `bbox`; a mask of another size is not
+    /// used), and the ray fill ([`FillMethod::Rays`], and the clean plate's fallback) takes
+    /// each pixel's colour from rays that reach its own surface
+    /// ([`ray_fill::OTHER_SURFACE_WEIGHT`]).
+    pub fn fill_in_bbox_on(
+        &mut self,
+        frame: &mut ImageRgba8,
+        mask: &Mask,
+        bbox: Rect,
+        method: &FillMethod<'_>,
+        surfaces: Option<&Mask>,
+    ) -> Result<FillStats, DiminishError> {
         ensure_same_size("mask", frame.size(), mask.size())?;
         let (w, h) = frame.size();
         if let FillMethod::PaperRectangle { rect: Some(r) } = method {
@@ -185,6 +201,7 @@ impl Diminisher {
                     bbox,
                     &mut self.to_fill,
                     *dirs,
+                    surfaces,
                     &mut self.rays,
                 )?;
                 Ok(FillStats {
@@ -210,6 +227,7 @@ impl Diminisher {
                         bbox,
                         &mut self.to_fill,
                         cp.fallback,
+                        surfaces,
                         &mut self.rays,
                     )?
                 } else {

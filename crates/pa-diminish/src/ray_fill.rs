@@ -24,7 +24,7 @@
 //! thread count.
 
 use crate::error::DiminishError;
-use crate::types::{ImageRgba8, Rect};
+use crate::types::{ImageRgba8, Mask, Rect};
 use rayon::prelude::*;
 
 /// How many ray directions [`crate::FillMethod::Rays`] uses.
@@ -105,18 +105,32 @@ pub(crate) const FILL: u8 = 1;
 /// ([`crate::Mask::HIDDEN`]).
 pub(crate) const PASS: u8 = 2;
 
+/// Weight of a ray whose hit lies on another surface than the pixel it fills (`surfaces`
+/// of [`ray_fill_region`]), relative to one on the same surface at the same distance: small
+/// enough that any ray on the pixel's own surface outweighs it, and not zero, so that a pixel
+/// with no such ray is still filled from the others.
+pub const OTHER_SURFACE_WEIGHT: f32 = 1e-3;
+
 /// Fills the pixels of `frame` inside `region` whose entry in `to_fill` (local, row-major,
 /// `region.width * region.height`) is [`FILL`], and clears those entries; [`PASS`] entries
-/// are unknown but left as they are. Everything else in the frame counts as known. Returns
-/// the number of pixels filled.
+/// are unknown but left as they are. Everything else in the frame counts as known. With
+/// `surfaces` (one label per frame pixel, read within 2 pixels of `region`: the set's
+/// surfaces, such as the table, the printed sheet, a tag), a ray that reaches another
+/// surface than its pixel's weighs [`OTHER_SURFACE_WEIGHT`] times less: the table is not
+/// filled with paper where the sheet's edge crosses the hole. Returns the number of pixels
+/// filled.
 pub(crate) fn ray_fill_region(
     frame: &mut ImageRgba8,
     region: Rect,
     to_fill: &mut [u8],
     dirs: RayDirections,
+    surfaces: Option<&Mask>,
     scratch: &mut RayScratch,
 ) -> Result<usize, DiminishError> {
     let (fw, fh) = frame.size();
+    let surfaces = surfaces
+        .filter(|m| m.size() == (fw, fh))
+        .map(Mask::as_slice);
     let rw = region.width as usize;
     let rh = region.height as usize;
     debug_assert_eq!(to_fill.len(), rw * rh);
@@ -153,7 +167,8 @@ pub(crate) fn ray_fill_region(
         let frame_ref: &ImageRgba8 = frame;
         let to_fill_ref: &[u8] = to_fill;
         let run = |lane: &mut Lane, dirs: &[(i32, i32)], up: bool| {
-            accumulate_sweep(frame_ref, region, to_fill_ref, dirs, up, lane, spans, recip);
+            let fill = (to_fill_ref, surfaces);
+            accumulate_sweep(frame_ref, region, fill, dirs, up, lane, spans, recip);
         };
         if rw * rh >= PARALLEL_MIN_AREA {
             rayon::join(
@@ -217,12 +232,12 @@ pub(crate) fn ray_fill_region(
 /// to bottom and left to right) that adds every direction of `dirs` to each pixel to fill,
 /// in the order of `dirs`. Each direction `u` must point along the sweep (`p - u` visited
 /// before `p`, at most [`STEP_ROWS`] - 1 rows back): then `k(p) = k(p - u) + 1` is known when
-/// `p` is visited.
+/// `p` is visited. `(to_fill, surfaces)` as in [`ray_fill_region`].
 #[allow(clippy::too_many_arguments)]
 fn accumulate_sweep(
     frame: &ImageRgba8,
     region: Rect,
-    to_fill: &[u8],
+    (to_fill, surfaces): (&[u8], Option<&[u8]>),
     dirs: &[(i32, i32)],
     up: bool,
     lane: &mut Lane,
@@ -286,6 +301,7 @@ fn accumulate_sweep(
                 return;
             }
             let gx = rx + lx as isize;
+            let surface = surfaces.map(|s| s[gy as usize * fw as usize + gx as usize]);
             let mut a = acc[li];
             for r in rays.iter() {
                 let px = gx - r.dx;
@@ -311,7 +327,13 @@ fn accumulate_sweep(
                     let hx = (gx - ki * r.dx) as usize;
                     let hy = (gy - ki * r.dy) as usize;
                     let p = hy * stride + hx * 4;
-                    let wgt = r.inv_norm * recip.get(k as usize).copied().unwrap_or(1.0 / k as f32);
+                    let mut wgt =
+                        r.inv_norm * recip.get(k as usize).copied().unwrap_or(1.0 / k as f32);
+                    if let (Some(s), Some(here)) = (surfaces, surface) {
+                        if s[hy * fw as usize + hx] != here {
+                            wgt *= OTHER_SURFACE_WEIGHT;
+                        }
+                    }
                     a[0] += wgt * f32::from(data[p]);
                     a[1] += wgt * f32::from(data[p + 1]);
                     a[2] += wgt * f32::from(data[p + 2]);
@@ -456,7 +478,7 @@ mod tests {
                 most_rounds = most_rounds.max(rounds);
                 let mut got = frame.clone();
                 let mut state = to_fill.clone();
-                let got_n = ray_fill_region(&mut got, region, &mut state, dirs, &mut scratch)
+                let got_n = ray_fill_region(&mut got, region, &mut state, dirs, None, &mut scratch)
                     .expect("fill");
                 assert_eq!(got_n, want_n, "case {n} {dirs:?}: pixels filled");
                 assert!(state.iter().all(|&v| v != FILL), "case {n}: FILL left");
@@ -472,6 +494,84 @@ mod tests {
         assert!(
             most_rounds >= 2,
             "the cases must need more rounds ({most_rounds})"
+        );
+    }
+
+    /// A table (label 0, colour 200) and a sheet (label 1, colour 20) meeting at column 20,
+    /// 40 x 30, and a hole across their edge; an island of label 2 inside the hole that no
+    /// known pixel shares. Returns the frame, the labels, the hole's region and `to_fill`.
+    fn edge_under_a_hole() -> (ImageRgba8, Mask, Rect, Vec<u8>) {
+        let (w, h) = (40u32, 30u32);
+        let mut data = Vec::new();
+        let mut labels = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let (label, level) = if x < 20 { (0, 200) } else { (1, 20) };
+                // The island: pixels the fill's hole covers, of a surface seen nowhere else.
+                let label = if (18..22).contains(&x) && (14..16).contains(&y) {
+                    2
+                } else {
+                    label
+                };
+                labels.push(label);
+                data.extend([level, level, level, 255]);
+            }
+        }
+        let frame = ImageRgba8::new(w, h, data).expect("frame");
+        let labels = Mask::new(w, h, labels).expect("labels");
+        let region = Rect::new(10, 8, 20, 14);
+        let to_fill = vec![FILL; (region.width * region.height) as usize];
+        (frame, labels, region, to_fill)
+    }
+
+    /// With the set's surfaces, each pixel of the hole takes its own surface's colour: the
+    /// table stays 200 and the sheet 20 up to their edge, where without them the two blend
+    /// over the hole's width. A pixel whose surface no ray reaches is filled from the others,
+    /// exactly as without surfaces (every weight is scaled alike), and labels of another size
+    /// than the frame are not used.
+    #[test]
+    fn rays_take_their_own_surface_where_the_surfaces_are_known() {
+        let (frame, labels, region, to_fill) = edge_under_a_hole();
+        let mut scratch = RayScratch::default();
+        let fill = |surfaces: Option<&Mask>, scratch: &mut RayScratch| {
+            let (mut out, mut state) = (frame.clone(), to_fill.clone());
+            let dirs = RayDirections::Sixteen;
+            let n = ray_fill_region(&mut out, region, &mut state, dirs, surfaces, scratch);
+            assert_eq!(n.expect("fill"), to_fill.len());
+            out
+        };
+        let plain = fill(None, &mut scratch);
+        let aware = fill(Some(&labels), &mut scratch);
+        let level = |img: &ImageRgba8, x: u32, y: u32| img.as_slice()[((y * 40 + x) * 4) as usize];
+        let mut blended = 0;
+        for y in region.y..region.y + region.height {
+            for x in region.x..region.x + region.width {
+                let label = labels.as_slice()[(y * 40 + x) as usize];
+                match label {
+                    0 | 1 => {
+                        let want = if label == 0 { 200 } else { 20 };
+                        let got = level(&aware, x, y);
+                        assert!(
+                            got.abs_diff(want) <= 1,
+                            "({x}, {y}): {got} on surface {label}"
+                        );
+                        blended += usize::from(level(&plain, x, y).abs_diff(want) > 10);
+                    }
+                    _ => {
+                        let (a, b) = (level(&aware, x, y), level(&plain, x, y));
+                        assert!(a.abs_diff(b) <= 1, "island ({x}, {y}): {a} vs {b}");
+                    }
+                }
+            }
+        }
+        assert!(
+            blended > 40,
+            "without surfaces the edge blends: {blended} pixels"
+        );
+        let small = Mask::zeros(20, 15).expect("mask");
+        assert_eq!(
+            fill(Some(&small), &mut scratch).as_slice(),
+            plain.as_slice()
         );
     }
 }

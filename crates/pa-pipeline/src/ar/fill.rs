@@ -104,16 +104,17 @@ impl ArPipeline {
         };
         if let (Some(m), Some(region)) = (method, fill_region) {
             // The ray fill invents what it does not see: tag pixels are redrawn from the
-            // board's print first (a clean plate shows them already).
+            // board's print first (a clean plate shows them already), and each pixel takes
+            // the rays that reach its own surface of the board (the table, the sheet).
             let mut surfaces = self.surfaces.take();
             let mut spare = self.spare_fill_mask.take();
-            let painted = match m {
+            let (labels, painted) = match m {
                 FillMethod::Rays(_) => {
                     let work = (region, RAY_FILL_TAG_MARGIN_PX, PaintTags::SetAndHidden);
                     let bg = &mut background;
-                    paint_known_tags(&mut surfaces, view, bg, fill_mask, work, &mut spare).1
+                    paint_known_tags(&mut surfaces, view, bg, fill_mask, work, &mut spare)
                 }
-                _ => false,
+                _ => (None, false),
             };
             let mask = match (&spare, painted) {
                 (Some(s), true) => s,
@@ -121,7 +122,7 @@ impl ArPipeline {
             };
             let filled = self
                 .diminisher
-                .fill_in_bbox(&mut background, mask, region, &m);
+                .fill_in_bbox_on(&mut background, mask, region, &m, labels);
             self.surfaces = surfaces;
             self.spare_fill_mask = spare;
             filled?;
