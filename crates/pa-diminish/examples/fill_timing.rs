@@ -3,8 +3,8 @@
 //! `cargo run --release -p pa-diminish --example fill_timing`
 
 use pa_diminish::{
-    dilate, fill, CleanPlate, DilateShape, Diminisher, FillMethod, Homography, ImageRgba8, Mask,
-    RayDirections,
+    blend_with_prior, dilate, fill, CleanPlate, DilateShape, Diminisher, FillMethod, Homography,
+    ImageRgba8, Mask, PatchPrior, RayDirections,
 };
 use std::time::Instant;
 
@@ -94,6 +94,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )?;
             row(&fname, name, t, Some(filled));
         }
+        // The ray fill on a set whose surfaces are known: two surfaces meeting on a slanted
+        // line across the mask.
+        let labels: Vec<u8> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| u8::from(f64::from(x) + 0.5 * f64::from(y) > cx)))
+            .collect();
+        let labels = Mask::new(w, h, labels)?;
+        for (name, dirs) in [
+            ("rays 8, two surfaces", RayDirections::Eight),
+            ("rays 16, two surfaces", RayDirections::Sixteen),
+        ] {
+            let mut filled = 0;
+            let method = FillMethod::Rays(dirs);
+            let t = time(
+                || {
+                    let _ = frame.borrow_mut().copy_from(&truth);
+                },
+                || {
+                    let mut f = frame.borrow_mut();
+                    filled = dim
+                        .fill_in_bbox_on(&mut f, &mask, bbox, &method, Some(&labels))?
+                        .filled;
+                    Ok(())
+                },
+            )?;
+            row(&fname, name, t, Some(filled));
+        }
+        // The temporal blend of a fill with the previous frame's result, warped.
+        let prior_mask = Mask::zeros(w, h)?;
+        let prior = PatchPrior {
+            image: &plate,
+            mask: &prior_mask,
+            current_from_previous: hmat,
+        };
+        let mut blended = 0;
+        let t = time(
+            || {},
+            || {
+                let mut f = frame.borrow_mut();
+                blended = blend_with_prior(&mut f, &mask, bbox, &prior, 0.7)?;
+                Ok(())
+            },
+        )?;
+        row(&fname, "temporal blend with the prior", t, Some(blended));
         // The one-shot API: bounding-box scan of the mask and fresh scratch buffers.
         let t = time(
             || {

@@ -51,6 +51,7 @@ pub mod plate_align;
 pub mod ray_fill;
 pub mod rect_fill;
 pub mod shadow;
+pub mod temporal;
 pub mod types;
 
 pub use cover::{
@@ -65,6 +66,7 @@ pub use plate_align::{PlateAlign, PlateAlignment};
 pub use ray_fill::RayDirections;
 pub use rect_fill::{baseline_rect, paper_rectangle_fill};
 pub use shadow::{cast_shadow, lift_shadow, measure_shadow, ShadowMatte, ShadowRatio};
+pub use temporal::blend_with_prior;
 pub use types::{ImageRgba8, Mask, Rect};
 
 use types::ensure_same_size;

@@ -109,8 +109,9 @@ pub struct ArPipeline {
     keep_passes: bool,
     /// Shadows: on or off, and the light ([`shadows`]).
     shadows: shadows::ShadowState,
-    /// The patch fill's previous result, its prior for the next frame ([`Fill::Patch`]).
-    patch_prior: Option<fill::PatchState>,
+    /// The previous frame's diminished background, the patch and ray fills' prior for the
+    /// next frame ([`Fill::Patch`], [`Fill::Rays`]).
+    fill_prior: Option<fill::FillPrior>,
     /// What replaces the board sheet, if anything ([`Hide`]).
     hide: Option<hide::HideState>,
     /// The key props' remembered appearance ([`memory`]); kept by `reset_tracker`.
@@ -256,7 +257,7 @@ impl ArPipeline {
             fill_mask: None,
             keep_passes: false,
             shadows: shadows::ShadowState::default(),
-            patch_prior: None,
+            fill_prior: None,
             hide: None,
             memory: memory::TextureMemory::default(),
             surfaces: None,
@@ -318,7 +319,7 @@ impl ArPipeline {
     /// result, the sun's direction and the grazing reflection before a frame that starts a new
     /// sequence.
     pub fn reset_tracker(&mut self) {
-        self.patch_prior = None;
+        self.fill_prior = None;
         self.sun_track = sun::SunTrack::default();
         self.grazing_track = crate::grazing::GrazingTrack::default();
         self.reset_tracking();
