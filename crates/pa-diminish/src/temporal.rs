@@ -52,7 +52,9 @@ pub fn blend_with_prior(
         let p = &prior_rgba[i * 4..i * 4 + 3];
         [f32::from(p[0]), f32::from(p[1]), f32::from(p[2])]
     };
-    // As `patch::pyramid::sample_prior`, with the homography's terms in y taken once a row.
+    // As `patch::pyramid::sample_prior`, in f32 and with the homography's terms in y taken
+    // once a row: calling it per pixel instead measured 1.5-1.9 ms against 1.2-1.25 on one
+    // thread (`fill_timing`, 31 428 pixels at 1280x720), on the frame's hot path.
     let blended = frame.as_mut_slice()[y0 * w * 4..y1 * w * 4]
         .par_chunks_mut(w * 4)
         .enumerate()
